@@ -1,0 +1,34 @@
+"""``flapsim bench TARGET``: speed benchmarks that report ratios measured in one run."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+from flapsim.errors import InputError
+
+HELP = "run a speed benchmark (forces, ...) and report ratios measured in the same run"
+
+# name -> "module:function"; each function takes the parsed args and returns a dict.
+BENCHES: dict[str, str] = {
+    "forces": "flapsim.fluid.bench:run",
+}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("target", help=f"what to benchmark: {', '.join(BENCHES)}")
+    p.add_argument(
+        "--seconds", type=float, default=None, help="wall seconds per measurement (default: per target)"
+    )
+    p.add_argument(
+        "--polygons",
+        default=None,
+        help="comma-separated polygon counts for 'forces' (default 50,300,1000)",
+    )
+
+
+def run(args: argparse.Namespace) -> dict:
+    if args.target not in BENCHES:
+        raise InputError(f"unknown benchmark {args.target!r}; choose one of {', '.join(BENCHES)}")
+    module_name, func = BENCHES[args.target].split(":")
+    return getattr(importlib.import_module(module_name), func)(args)

@@ -1,0 +1,1 @@
+"""MuJoCo glue shared by every system: loading, the passive-force dispatcher, PD, state."""
