@@ -1,0 +1,201 @@
+"""Lift and drag coefficient tables over the full 0-180 deg angle-of-attack range.
+
+Convention (the usual one for a wing section turned through 180 deg): ``aoa`` is the
+angle between the relative flow and the plate's chord line, 0 deg when the flow comes
+from the leading edge along the chord, 180 deg when it comes from the trailing edge.
+For a plate symmetric about its chord the lift coefficient is odd about 90 deg,
+``CL(180 - a) = -CL(a)``, and drag is even, ``CD(180 - a) = CD(a)``. How the engine
+orients lift for each half is described in :mod:`flapsim.fluid.surfaces`.
+
+Every table is sampled on a uniform 0.5 deg grid (361 samples) so the compiled kernel
+interpolates it without a search.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flapsim.errors import InputError
+
+N_SAMPLES = 361
+AOA_DEG = np.linspace(0.0, 180.0, N_SAMPLES)
+_A = np.deg2rad(AOA_DEG)
+
+
+@dataclass(frozen=True)
+class CoefficientTable:
+    """CL and CD sampled on :data:`AOA_DEG` (0..180 deg, 0.5 deg apart)."""
+
+    name: str
+    #: lift coefficient at each grid angle (dimensionless, referenced to polygon area)
+    cl: np.ndarray = field(repr=False)
+    #: drag coefficient at each grid angle (dimensionless, referenced to polygon area)
+    cd: np.ndarray = field(repr=False)
+    #: where the numbers come from
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        for label, arr in (("cl", self.cl), ("cd", self.cd)):
+            a = np.asarray(arr, dtype=float)
+            if a.shape != (N_SAMPLES,) or not np.all(np.isfinite(a)):
+                raise InputError(f"table {self.name}: {label} must be {N_SAMPLES} finite samples")
+            object.__setattr__(self, label, a)
+        if np.any(self.cd < 0):
+            raise InputError(f"table {self.name}: drag coefficients must be >= 0")
+
+    def at(self, aoa_deg: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """(CL, CD) at angles in degrees (linear interpolation; the kernel does the same)."""
+        a = np.clip(np.asarray(aoa_deg, dtype=float), 0.0, 180.0)
+        return np.interp(a, AOA_DEG, self.cl), np.interp(a, AOA_DEG, self.cd)
+
+    @classmethod
+    def from_samples(
+        cls, name: str, aoa_deg: np.ndarray, cl: np.ndarray, cd: np.ndarray, source: str = ""
+    ) -> CoefficientTable:
+        """Resample measured points (any increasing 0..180 grid) onto the standard grid."""
+        aoa_deg = np.asarray(aoa_deg, dtype=float)
+        if aoa_deg.ndim != 1 or aoa_deg[0] > 0 or aoa_deg[-1] < 180 or np.any(np.diff(aoa_deg) <= 0):
+            raise InputError(f"table {name}: angles must increase and cover 0..180 deg")
+        return cls(name, np.interp(AOA_DEG, aoa_deg, cl), np.interp(AOA_DEG, aoa_deg, cd), source)
+
+
+def _mirror(cl_0_90: np.ndarray, cd_0_90: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Extend values given on 0..90 deg (first 181 samples) to 0..180 by plate symmetry."""
+    half = (N_SAMPLES + 1) // 2
+    cl = np.empty(N_SAMPLES)
+    cd = np.empty(N_SAMPLES)
+    cl[:half] = cl_0_90[:half]
+    cd[:half] = cd_0_90[:half]
+    cl[half:] = -cl[: half - 1][::-1]
+    cd[half:] = cd[: half - 1][::-1]
+    cl[half - 1] = 0.0  # lift vanishes with flow normal to a symmetric plate
+    return cl, cd
+
+
+def flat_plate(cd0: float = 0.02) -> CoefficientTable:
+    """Post-stall flat plate, normal-force model: CN = 2 sin a, CL = 2 sin a cos a,
+    CD = 2 sin^2 a + cd0 (REFERENCE_DATA 'Lift and drag coefficients')."""
+    return CoefficientTable(
+        "flat_plate",
+        2.0 * np.sin(_A) * np.cos(_A),
+        2.0 * np.sin(_A) ** 2 + cd0,
+        "flat plate normal-force model CN = 2 sin a (Hoerner 1965; Dickinson et al. 1999 Fig. 3)",
+    )
+
+
+def feather_stall(
+    lift_slope: float = 4.0, stall_deg: float = 14.0, cd0: float = 0.05, blend_deg: float = 4.0
+) -> CoefficientTable:
+    """Attached flow up to stall, then the flat plate.
+
+    Below ``stall_deg`` CL = ``lift_slope`` * a (4/rad: a low-aspect-ratio wing), CD =
+    cd0 + 2 sin^2 a; above it the flat-plate model; blended linearly over ``blend_deg``
+    past the stall angle so the table stays continuous. Defaults give CL max ~1.0 and
+    a drag floor 0.05, inside the bird-wing ranges of Withers 1981 (max CL 0.8-1.2,
+    min CD 0.03-0.13).
+    """
+    a = _A
+    attached = lift_slope * a
+    plate_cl = 2.0 * np.sin(a) * np.cos(a)
+    s0, s1 = np.deg2rad(stall_deg), np.deg2rad(stall_deg + blend_deg)
+    t = np.clip((a - s0) / (s1 - s0), 0.0, 1.0)
+    cl = (1 - t) * attached + t * plate_cl
+    cd = cd0 + 2.0 * np.sin(a) ** 2
+    cl, cd = _mirror(cl, cd)
+    return CoefficientTable(
+        "feather_stall",
+        cl,
+        cd,
+        f"attached lift slope {lift_slope}/rad, stall {stall_deg} deg, then flat plate; "
+        "ranges from Withers 1981 JEB 90:143",
+    )
+
+
+def _taper_ends(values: np.ndarray, width_deg: float = 10.0) -> np.ndarray:
+    """Remove a fit's offsets at 0 and 90 deg over ``width_deg`` so that lift vanishes
+    where a symmetric plate has none (keeps the mirrored table continuous)."""
+    a = AOA_DEG[: (N_SAMPLES + 1) // 2]
+    out = values.copy()
+    out -= values[0] * np.clip(1.0 - a / width_deg, 0.0, 1.0)
+    out -= values[-1] * np.clip(1.0 - (90.0 - a) / width_deg, 0.0, 1.0)
+    return out
+
+
+def dickinson1999(cd0: float | None = None) -> CoefficientTable:
+    """Quasi-steady flapping-wing coefficients of the robofly (Dickinson, Lehmann & Sane
+    1999, Science 284:1954; Re ~ 10^2), which fold in the leading-edge vortex:
+    CL = 0.225 + 1.58 sin(2.13 a - 7.20 deg), CD = 1.92 - 1.55 cos(2.04 a - 9.82 deg).
+
+    The fit's small lift offsets at 0 and 90 deg (0.03, 0.10) are tapered to zero within
+    10 deg so the 0..180 table is continuous; the peak (CL 1.8 near 45 deg) is untouched.
+    ``cd0`` (optional) shifts the drag curve so that CD(0) = cd0: the robofly's 0.39 is
+    high for a feathered wing (REFERENCE_DATA; bird wings 0.03-0.13, Withers 1981).
+    """
+    half = (N_SAMPLES + 1) // 2
+    a_deg = AOA_DEG[:half]
+    cl = 0.225 + 1.58 * np.sin(np.deg2rad(2.13 * a_deg - 7.20))
+    cd = 1.92 - 1.55 * np.cos(np.deg2rad(2.04 * a_deg - 9.82))
+    cl = _taper_ends(cl)
+    name = "dickinson1999"
+    if cd0 is not None:
+        cd = cd - cd[0] + cd0
+        name = f"dickinson1999_cd0_{cd0:g}"
+    full_cl, full_cd = _mirror(np.concatenate([cl, np.zeros(half - 1)]),
+                               np.concatenate([cd, np.zeros(half - 1)]))
+    return CoefficientTable(
+        name, full_cl, full_cd, "Dickinson, Lehmann & Sane 1999, Science 284:1954 (robofly fit)"
+    )
+
+
+def wang2004() -> CoefficientTable:
+    """Wang, Birch & Dickinson 2004 (JEB 207:449): CL = 1.2 sin 2a, CD = 1.4 - cos 2a."""
+    return CoefficientTable(
+        "wang2004", 1.2 * np.sin(2 * _A), 1.4 - np.cos(2 * _A), "Wang, Birch & Dickinson 2004"
+    )
+
+
+def hoerner_plate(aspect_ratio: float = 0.2, cd_crossflow: float = 1.2, cd0: float = 0.0
+                  ) -> CoefficientTable:
+    """Thin low-aspect-ratio plate fully immersed at low Reynolds number (the swimming
+    paper's Fig. 5 model, after Hoerner 1965 / Hoerner & Borst 1975).
+
+    Normal force CN = (pi/2) AR sin a cos a + CDc sin^2 a (slender-wing lift slope plus
+    cross-flow drag), CL = CN cos a, CD = CN sin a + cd0. CDc = 1.2 is Hoerner's normal
+    drag of a 5:1 rectangular plate (1.17 square .. 1.98 two-dimensional). With AR 0.2 this
+    peaks at CL ~0.56 near 50 deg and CD 1.2 at 90 deg, matching hand/forearm data
+    (Berger et al. 1995: max CL 0.5-0.6, max CD 1.1-1.2). Skin friction is the engine's
+    separate eta*A*v_t term, so cd0 defaults to 0.
+    """
+    if aspect_ratio <= 0:
+        raise InputError("aspect_ratio must be > 0")
+    a = _A
+    cn = 0.5 * np.pi * aspect_ratio * np.sin(a) * np.cos(a) + cd_crossflow * np.sin(a) ** 2
+    cl, cd = _mirror(cn * np.cos(a), cn * np.sin(a) + cd0)
+    return CoefficientTable(
+        f"hoerner_plate_ar{aspect_ratio:g}",
+        cl,
+        cd,
+        "Hoerner 1965 Fluid-Dynamic Drag; Hoerner & Borst 1975 Fluid-Dynamic Lift (low-AR plate)",
+    )
+
+
+TABLES: dict[str, Callable[[], CoefficientTable]] = {
+    "flat_plate": flat_plate,
+    "feather_stall": feather_stall,
+    "dickinson1999": dickinson1999,
+    "dickinson1999_lowdrag": lambda: dickinson1999(cd0=0.05),
+    "wang2004": wang2004,
+    "hoerner_plate": hoerner_plate,
+}
+
+
+def get_table(name: str | CoefficientTable) -> CoefficientTable:
+    """A table by name (see :data:`TABLES`), or the table itself."""
+    if isinstance(name, CoefficientTable):
+        return name
+    if name not in TABLES:
+        raise InputError(f"unknown coefficient table {name!r}; choose one of {', '.join(TABLES)}")
+    return TABLES[name]()

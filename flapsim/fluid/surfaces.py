@@ -1,0 +1,583 @@
+"""Oriented polygons on bodies -> drag, lift and friction -> body wrenches, every step.
+
+One engine serves air (feathers) and water (swimmer); they differ only in coefficient
+tables and :class:`FluidParams`. Per polygon, at its world centroid ``p`` on body ``b``:
+
+* relative flow ``V = u(p, t) - v_b(p)``: fluid velocity field minus the body's point
+  velocity ``cvel[b,3:] + cvel[b,:3] x (p - subtree_com[root(b)])``;
+* with a forward vector ``F`` (the plate's long side / a feather's leading-edge chord
+  direction, as in the swimming paper): ``V`` splits into its part ``V_d`` in the plane
+  of ``N`` and ``F`` (drag and lift) and its part along ``S = N x F`` (friction only);
+  angle of attack ``a = atan2(|V_d.N|, -V_d.F)`` in 0..180 deg (below 90 deg when the flow
+  meets the +F edge first). Without ``F``: ``V_d = V`` and ``a = atan2(|V.N|, |V_t|)``
+  in 0..90 deg (the flight paper's eq. 8);
+* drag ``1/2 rho |V_d|^2 A CD(a)`` along ``V_d``; lift ``1/2 rho |V_d|^2 A CL(a)``
+  perpendicular to ``V_d`` in the plane of ``N``, on the side the flow pushes the plate
+  (towards ``sign(V_d.N) N``), with the sign of CL flipped past 90 deg, where a
+  symmetric table's CL turns negative only because its lift axis turned over;
+* friction ``eta A v_t`` along the tangential flow (``eta`` [N s/m^3] is a skin-friction
+  coefficient per unit area and speed, the swimming paper's eq. 2);
+* optional rules: only front-facing polygons (flow hits the face: ``V.N < 0`` for an
+  outward normal), and a free surface at height ``surface_z`` (fluid only below it; a
+  polygon straddling it is scaled by its submerged fraction along its vertical extent).
+
+The swimming paper writes drag as ``1/2 C rho a_n |v_n|^2`` (projected area times the
+normal speed squared). Hoerner's plate coefficients are referenced to the plate area
+and the full dynamic pressure, so using them with ``a_n |v_n|^2`` would count the angle
+dependence twice; flapsim uses ``A |V_d|^2`` for both fluids.
+
+Force terms are inspectable one by one with :meth:`SurfaceForces.evaluate`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from numba import njit
+
+from flapsim.errors import InputError
+from flapsim.fluid.coefficients import N_SAMPLES, CoefficientTable, get_table
+from flapsim.fluid.flow import FlowField, flow_at
+from flapsim.sim.callbacks import (
+    CompiledProvider,
+    Registration,
+    register,
+    register_kernel,
+    time_view,
+)
+from flapsim.sim.wrench import add_force, map_wrenches
+
+RECORD = 16  # floats recorded per polygon by evaluate(): see SurfaceReport
+
+
+def _rows(name: str, a: np.ndarray | Sequence, n: int, width: int) -> np.ndarray:
+    arr = np.asarray(a, dtype=float)
+    if width == 1:
+        arr = np.broadcast_to(arr, (n,)).astype(float) if arr.ndim == 0 else arr
+        shape = (n,)
+    else:
+        shape = (n, width)
+    if arr.shape != shape:
+        raise InputError(f"PolygonSet.{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"PolygonSet.{name} contains NaN or inf")
+    return np.ascontiguousarray(arr)
+
+
+@dataclass(frozen=True)
+class PolygonSet:
+    """Oriented polygons attached to bodies. Geometry is in each body's local frame."""
+
+    #: MuJoCo body id each polygon is attached to (>= 1; the world body cannot move)
+    body: np.ndarray
+    #: polygon centroid in the body frame [m], (n, 3)
+    centroid: np.ndarray
+    #: unit normal in the body frame, (n, 3)
+    normal: np.ndarray
+    #: polygon area [m^2], (n,)
+    area: np.ndarray
+    #: unit in-plane forward vector (long side / leading edge) or zeros, (n, 3)
+    forward: np.ndarray
+    #: index into the coefficient table list of the :class:`SurfaceForces`, (n,)
+    table: np.ndarray
+    #: half-size [m]: largest centroid-to-vertex distance, for the free-surface cut, (n,)
+    extent: np.ndarray
+    #: optional label per polygon (e.g. feather name), for plucking and reports
+    labels: tuple[str, ...] = field(default=(), compare=False)
+
+    def __post_init__(self) -> None:
+        n = int(np.asarray(self.body).shape[0]) if np.ndim(self.body) else 0
+        body = np.ascontiguousarray(self.body, dtype=np.int64).reshape(-1)
+        table = np.ascontiguousarray(np.broadcast_to(np.asarray(self.table, dtype=np.int64), (n,)))
+        object.__setattr__(self, "body", body)
+        object.__setattr__(self, "table", table)
+        object.__setattr__(self, "centroid", _rows("centroid", self.centroid, n, 3))
+        normal = _rows("normal", self.normal, n, 3)
+        if n and np.any(np.abs(np.linalg.norm(normal, axis=1) - 1.0) > 1e-6):
+            raise InputError("PolygonSet.normal must be unit vectors")
+        object.__setattr__(self, "normal", normal)
+        area = _rows("area", self.area, n, 1)
+        if np.any(area <= 0):
+            raise InputError("PolygonSet.area must be > 0 (degenerate polygon?)")
+        object.__setattr__(self, "area", area)
+        fwd = _rows("forward", self.forward, n, 3)
+        fn = np.linalg.norm(fwd, axis=1)
+        if np.any((fn > 1e-12) & (np.abs(fn - 1.0) > 1e-6)):
+            raise InputError("PolygonSet.forward must be unit vectors or zeros")
+        if np.any(np.abs(np.einsum("ij,ij->i", fwd, normal)) > 1e-6):
+            raise InputError("PolygonSet.forward must lie in the polygon plane (F . N = 0)")
+        object.__setattr__(self, "forward", fwd)
+        object.__setattr__(self, "extent", _rows("extent", self.extent, n, 1))
+        if self.labels and len(self.labels) != n:
+            raise InputError("PolygonSet.labels needs one label per polygon")
+
+    def __len__(self) -> int:
+        return int(self.body.shape[0])
+
+    @classmethod
+    def from_triangles(
+        cls,
+        body: int | np.ndarray,
+        vertices: np.ndarray,
+        forward: np.ndarray | Sequence[float] | None = None,
+        table: int | np.ndarray = 0,
+        labels: Sequence[str] = (),
+    ) -> PolygonSet:
+        """Triangles (n, 3, 3) in the body frame; normal by the right-hand rule of the
+        vertex order. ``forward`` (3,) or (n, 3) is projected into each plane."""
+        return cls.from_polygons(body, vertices, forward, table, labels)
+
+    @classmethod
+    def from_polygons(
+        cls,
+        body: int | np.ndarray,
+        vertices: np.ndarray,
+        forward: np.ndarray | Sequence[float] | None = None,
+        table: int | np.ndarray = 0,
+        labels: Sequence[str] = (),
+    ) -> PolygonSet:
+        """Planar convex polygons (n, k, 3), k >= 3, vertices in order (normal by the
+        right-hand rule)."""
+        v = np.asarray(vertices, dtype=float)
+        if v.ndim != 3 or v.shape[1] < 3 or v.shape[2] != 3:
+            raise InputError(f"vertices must have shape (n, k>=3, 3), got {v.shape}")
+        n = v.shape[0]
+        # area vector of a polygon: half the sum of cross products of a fan from vertex 0
+        e = v[:, 1:, :] - v[:, :1, :]
+        av = 0.5 * np.cross(e[:, :-1], e[:, 1:]).sum(axis=1)
+        area = np.linalg.norm(av, axis=1)
+        if np.any(area <= 1e-15):
+            bad = int(np.argmin(area))
+            raise InputError(f"polygon {bad} has zero area (collinear vertices)")
+        normal = av / area[:, None]
+        # area-weighted centroid of the fan triangles
+        tri_c = (v[:, :1, :] + v[:, 1:-1, :] + v[:, 2:, :]) / 3.0
+        tri_a = 0.5 * np.linalg.norm(np.cross(e[:, :-1], e[:, 1:]), axis=2)
+        centroid = (tri_c * tri_a[:, :, None]).sum(axis=1) / tri_a.sum(axis=1)[:, None]
+        extent = np.linalg.norm(v - centroid[:, None, :], axis=2).max(axis=1)
+        fwd = np.zeros((n, 3))
+        if forward is not None:
+            f = np.broadcast_to(np.asarray(forward, dtype=float), (n, 3))
+            f = f - np.einsum("ij,ij->i", f, normal)[:, None] * normal
+            norm = np.linalg.norm(f, axis=1)
+            if np.any(norm < 1e-9):
+                raise InputError("forward vector is normal to a polygon; it must lie in its plane")
+            fwd = f / norm[:, None]
+        bodies = np.broadcast_to(np.asarray(body, dtype=np.int64), (n,))
+        return cls(bodies, centroid, normal, area, fwd, table, extent, tuple(labels))
+
+    @classmethod
+    def from_box(
+        cls, body: int, half_sizes: Sequence[float], pos: Sequence[float] = (0, 0, 0),
+        quat: Sequence[float] = (1, 0, 0, 0), subdivisions: int = 1, table: int = 0,
+        label: str = "",
+    ) -> PolygonSet:
+        """The six faces of a box (outward normals, forward = the face's longer side),
+        each split into ``subdivisions`` x ``subdivisions`` patches so that a free
+        surface cuts them finely. Box pose (``pos``, ``quat``) is in the body frame."""
+        h = np.asarray(half_sizes, dtype=float)
+        if h.shape != (3,) or np.any(h <= 0):
+            raise InputError("box half_sizes must be 3 positive numbers")
+        k = int(subdivisions)
+        if k < 1:
+            raise InputError("subdivisions must be >= 1")
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, np.asarray(quat, dtype=float))
+        R = R.reshape(3, 3)
+        polys, fwds = [], []
+        for axis in range(3):
+            u_ax, v_ax = [a for a in range(3) if a != axis]
+            for sign in (1.0, -1.0):
+                # order (u, v) so that u x v points along sign * axis (outward)
+                u, v = (u_ax, v_ax) if sign > 0 else (v_ax, u_ax)
+                grid = np.linspace(-1.0, 1.0, k + 1)
+                for i in range(k):
+                    for j in range(k):
+                        corners = []
+                        for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                            c = np.zeros(3)
+                            c[axis] = sign * h[axis]
+                            c[u] = grid[i + du] * h[u]
+                            c[v] = grid[j + dv] * h[v]
+                            corners.append(c)
+                        polys.append(corners)
+                        long_ax = u if h[u] >= h[v] else v
+                        f = np.zeros(3)
+                        f[long_ax] = 1.0
+                        fwds.append(f)
+        verts = np.einsum("ij,nkj->nki", R, np.asarray(polys)) + np.asarray(pos, dtype=float)
+        fwd = np.asarray(fwds) @ R.T
+        labels = (label,) * len(polys) if label else ()
+        return cls.from_polygons(body, verts, fwd, table, labels)
+
+    @staticmethod
+    def concat(sets: Sequence[PolygonSet]) -> PolygonSet:
+        """One set from several (labels kept only if every set has them)."""
+        if not sets:
+            raise InputError("concat needs at least one PolygonSet")
+        labels: tuple[str, ...] = ()
+        if all(len(s.labels) == len(s) for s in sets):
+            labels = tuple(lbl for s in sets for lbl in s.labels)
+        return PolygonSet(
+            np.concatenate([s.body for s in sets]),
+            np.concatenate([s.centroid for s in sets]),
+            np.concatenate([s.normal for s in sets]),
+            np.concatenate([s.area for s in sets]),
+            np.concatenate([s.forward for s in sets]),
+            np.concatenate([s.table for s in sets]),
+            np.concatenate([s.extent for s in sets]),
+            labels,
+        )
+
+    def subset(self, mask: np.ndarray) -> PolygonSet:
+        """The polygons where ``mask`` is true (e.g. plucking feathers)."""
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != (len(self),):
+            raise InputError(f"mask must have shape ({len(self)},), got {m.shape}")
+        labels = tuple(lbl for lbl, keep in zip(self.labels, m, strict=False) if keep)
+        return PolygonSet(self.body[m], self.centroid[m], self.normal[m], self.area[m],
+                          self.forward[m], self.table[m], self.extent[m], labels)
+
+
+@dataclass(frozen=True)
+class FluidParams:
+    """The medium and the rules of the force model."""
+
+    #: fluid density [kg/m^3]; air 1.225 (ISA sea level, the flight paper), water ~1000
+    density: float = 1.225
+    #: skin-friction coefficient eta [N s/m^3]: friction = eta * area * tangential speed
+    friction: float = 0.0
+    #: only polygons whose outward normal faces the oncoming flow feel force (swimming paper)
+    front_facing_only: bool = False
+    #: height of a free surface [m]: the fluid fills z < surface_z; None = unbounded
+    surface_z: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.density) and self.density > 0):
+            raise InputError(f"fluid density must be > 0 kg/m^3, got {self.density}")
+        if not (np.isfinite(self.friction) and self.friction >= 0):
+            raise InputError(f"friction coefficient must be >= 0, got {self.friction}")
+        if self.surface_z is not None and not np.isfinite(self.surface_z):
+            raise InputError("surface_z must be finite or None")
+
+    def pack(self) -> np.ndarray:
+        z = np.inf if self.surface_z is None else float(self.surface_z)
+        return np.array([self.density, self.friction, float(self.front_facing_only), z, 0.0])
+
+
+@njit(cache=True)
+def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, pext, ptab,
+                   cl_tab, cd_tab, flow, params, tnow, ext_flow, rec):
+    """Add every polygon's force to the body wrench accumulator ``w``.
+
+    ``params`` = (density, friction, front_only, surface_z, use_ext_flow); ``rec`` is
+    filled per polygon when its size allows (see :class:`SurfaceReport`).
+    """
+    rho = params[0]
+    eta = params[1]
+    front_only = params[2] > 0.5
+    zs = params[3]
+    use_ext = params[4] > 0.5
+    record = rec.size >= 16 * pbody.size
+    t = tnow[0]
+    nsamp = 361  # coefficients.N_SAMPLES
+    nseg = nsamp - 1
+    for i in range(pbody.size):
+        b = pbody[i]
+        m = 9 * b
+        lx = pc[3 * i]
+        ly = pc[3 * i + 1]
+        lz = pc[3 * i + 2]
+        px = xpos[3 * b] + xmat[m] * lx + xmat[m + 1] * ly + xmat[m + 2] * lz
+        py = xpos[3 * b + 1] + xmat[m + 3] * lx + xmat[m + 4] * ly + xmat[m + 5] * lz
+        pz = xpos[3 * b + 2] + xmat[m + 6] * lx + xmat[m + 7] * ly + xmat[m + 8] * lz
+        if record:
+            for k in range(16):
+                rec[16 * i + k] = 0.0
+            rec[16 * i + 13] = px
+            rec[16 * i + 14] = py
+            rec[16 * i + 15] = pz
+        # submerged fraction under a free surface
+        frac = 1.0
+        if zs < 1e300:
+            a = pn[3 * i]
+            c = pn[3 * i + 1]
+            e = pn[3 * i + 2]
+            nz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
+            half = pext[i] * np.sqrt(max(0.0, 1.0 - nz * nz))
+            if half > 1e-12:
+                frac = min(1.0, max(0.0, 0.5 + (zs - pz) / (2.0 * half)))
+            else:
+                frac = 1.0 if pz < zs else 0.0
+            if frac <= 0.0:
+                continue
+        # world normal and forward
+        a = pn[3 * i]
+        c = pn[3 * i + 1]
+        e = pn[3 * i + 2]
+        nx = xmat[m] * a + xmat[m + 1] * c + xmat[m + 2] * e
+        ny = xmat[m + 3] * a + xmat[m + 4] * c + xmat[m + 5] * e
+        nz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
+        a = pf[3 * i]
+        c = pf[3 * i + 1]
+        e = pf[3 * i + 2]
+        has_f = a * a + c * c + e * e > 0.5
+        fx = xmat[m] * a + xmat[m + 1] * c + xmat[m + 2] * e
+        fy = xmat[m + 3] * a + xmat[m + 4] * c + xmat[m + 5] * e
+        fz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
+        # body point velocity (cvel = [omega, v] at the root's subtree com)
+        r = rootid[b]
+        dx = px - scom[3 * r]
+        dy = py - scom[3 * r + 1]
+        dz = pz - scom[3 * r + 2]
+        wx = cvel[6 * b]
+        wy = cvel[6 * b + 1]
+        wz = cvel[6 * b + 2]
+        bvx = cvel[6 * b + 3] + wy * dz - wz * dy
+        bvy = cvel[6 * b + 4] + wz * dx - wx * dz
+        bvz = cvel[6 * b + 5] + wx * dy - wy * dx
+        ux, uy, uz = flow_at(flow, px, py, pz, t)
+        if use_ext:
+            ux += ext_flow[3 * i]
+            uy += ext_flow[3 * i + 1]
+            uz += ext_flow[3 * i + 2]
+        vx = ux - bvx
+        vy = uy - bvy
+        vz = uz - bvz
+        vn = vx * nx + vy * ny + vz * nz
+        if front_only and vn >= 0.0:
+            continue
+        area = parea[i] * frac
+        # split: drag/lift part (in the N-F plane, or everything) and friction part
+        if has_f:
+            sx = ny * fz - nz * fy
+            sy = nz * fx - nx * fz
+            sz = nx * fy - ny * fx
+            vs = vx * sx + vy * sy + vz * sz
+            tx = vs * sx
+            ty = vs * sy
+            tz = vs * sz
+            dvx = vx - tx
+            dvy = vy - ty
+            dvz = vz - tz
+        else:
+            tx = vx - vn * nx
+            ty = vy - vn * ny
+            tz = vz - vn * nz
+            dvx = vx
+            dvy = vy
+            dvz = vz
+        frx = eta * area * tx
+        fry = eta * area * ty
+        frz = eta * area * tz
+        sp2 = dvx * dvx + dvy * dvy + dvz * dvz
+        drx = 0.0
+        dry = 0.0
+        drz = 0.0
+        lfx = 0.0
+        lfy = 0.0
+        lfz = 0.0
+        aoa = 0.0
+        if sp2 > 1e-24:
+            sp = np.sqrt(sp2)
+            dn = dvx * nx + dvy * ny + dvz * nz
+            if has_f:
+                aoa = np.arctan2(abs(dn), -(dvx * fx + dvy * fy + dvz * fz))
+            else:
+                aoa = np.arctan2(abs(dn), np.sqrt(max(0.0, sp2 - dn * dn)))
+            # table lookup on the uniform 0..pi grid
+            tab = ptab[i] * nsamp
+            u = aoa * (nseg / np.pi)
+            k0 = min(int(u), nseg - 1)
+            s = u - k0
+            cl = cl_tab[tab + k0] * (1.0 - s) + cl_tab[tab + k0 + 1] * s
+            cd = cd_tab[tab + k0] * (1.0 - s) + cd_tab[tab + k0 + 1] * s
+            if aoa > 0.5 * np.pi:
+                cl = -cl
+            q = 0.5 * rho * sp2 * area
+            ex = dvx / sp
+            ey = dvy / sp
+            ez = dvz / sp
+            drx = q * cd * ex
+            dry = q * cd * ey
+            drz = q * cd * ez
+            sg = 1.0 if dn >= 0.0 else -1.0
+            proj = sg * (nx * ex + ny * ey + nz * ez)
+            lx = sg * nx - proj * ex
+            ly = sg * ny - proj * ey
+            lz = sg * nz - proj * ez
+            ln = np.sqrt(lx * lx + ly * ly + lz * lz)
+            if ln > 1e-12:
+                g = q * cl / ln
+                lfx = g * lx
+                lfy = g * ly
+                lfz = g * lz
+        Fx = drx + lfx + frx
+        Fy = dry + lfy + fry
+        Fz = drz + lfz + frz
+        add_force(w, b, Fx, Fy, Fz, px, py, pz)
+        if record:
+            o = 16 * i
+            rec[o] = drx
+            rec[o + 1] = dry
+            rec[o + 2] = drz
+            rec[o + 3] = lfx
+            rec[o + 4] = lfy
+            rec[o + 5] = lfz
+            rec[o + 6] = frx
+            rec[o + 7] = fry
+            rec[o + 8] = frz
+            rec[o + 9] = aoa
+            rec[o + 10] = frac
+            rec[o + 11] = vx
+            rec[o + 12] = vy
+    return 0
+
+
+register_kernel("surfaces", surface_kernel, "ffffiifffffifffffff")
+
+
+@dataclass
+class SurfaceReport:
+    """Per-polygon force terms from :meth:`SurfaceForces.evaluate` (world frame, SI)."""
+
+    drag: np.ndarray  #: (n, 3) drag force [N]
+    lift: np.ndarray  #: (n, 3) lift force [N]
+    friction: np.ndarray  #: (n, 3) friction force [N]
+    aoa: np.ndarray  #: (n,) angle of attack [rad]
+    submerged: np.ndarray  #: (n,) fraction of the polygon in the fluid
+    points: np.ndarray  #: (n, 3) world centroids [m]
+    body_force: np.ndarray  #: (nbody, 3) summed force per body [N]
+    body_torque: np.ndarray  #: (nbody, 3) summed torque per body about the world origin [N m]
+
+    @property
+    def force(self) -> np.ndarray:
+        """(n, 3) total force per polygon [N]."""
+        return self.drag + self.lift + self.friction
+
+    @property
+    def total_force(self) -> np.ndarray:
+        return self.body_force.sum(axis=0)
+
+
+class SurfaceForces(CompiledProvider):
+    """Fluid forces on a :class:`PolygonSet`, applied through the passive dispatcher."""
+
+    kernel = "surfaces"
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        polygons: PolygonSet,
+        tables: Sequence[CoefficientTable | str] = ("flat_plate",),
+        params: FluidParams | None = None,
+        flow: FlowField | None = None,
+        name: str = "surface forces",
+    ) -> None:
+        self.model = model
+        self.polygons = polygons
+        self.name = name
+        if len(polygons) == 0:
+            raise InputError("SurfaceForces needs at least one polygon")
+        if polygons.body.min() < 1 or polygons.body.max() >= model.nbody:
+            raise InputError(
+                f"polygon body ids must be in 1..{model.nbody - 1} for this model "
+                f"(got {polygons.body.min()}..{polygons.body.max()})"
+            )
+        self.tables = [get_table(t) for t in tables]
+        if polygons.table.min() < 0 or polygons.table.max() >= len(self.tables):
+            raise InputError(
+                f"polygon table indices must be in 0..{len(self.tables) - 1} "
+                f"({len(self.tables)} tables given)"
+            )
+        self.params = params or FluidParams()
+        self.flow = flow or FlowField()
+        self._param_array = self.params.pack()
+        self._cl = np.concatenate([t.cl for t in self.tables])
+        self._cd = np.concatenate([t.cd for t in self.tables])
+        self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)
+        self._ext = np.zeros(3 * len(polygons))
+        self._no_record = np.zeros(1)
+        assert self._cl.size == N_SAMPLES * len(self.tables)
+
+    def set_params(self, params: FluidParams) -> None:
+        """Change density, friction or the free surface in place (takes effect at once)."""
+        self.params = params
+        self._param_array[:4] = params.pack()[:4]
+
+    def arrays(self, model: mujoco.MjModel, data: mujoco.MjData, record: np.ndarray | None = None
+               ) -> list[np.ndarray]:
+        if model is not self.model and model.nbody != self.model.nbody:
+            raise InputError("SurfaceForces used with a different model than it was built for")
+        p = self.polygons
+        return [
+            data.xpos.reshape(-1), data.xmat.reshape(-1), data.cvel.reshape(-1),
+            data.subtree_com.reshape(-1), self._rootid, p.body, p.centroid.reshape(-1),
+            p.normal.reshape(-1), p.forward.reshape(-1), p.area, p.extent, p.table, self._cl,
+            self._cd, self.flow.params, self._param_array, time_view(data), self._ext,
+            self._no_record if record is None else record,
+        ]
+
+    def register(self, data: mujoco.MjData) -> Registration:
+        """Apply these forces whenever MuJoCo steps ``data`` (until the handle is removed)."""
+        if self.flow.has_python:
+            return register(self.model, data, self._python_provider(data), self.name)
+        return register(self.model, data, self)
+
+    def _python_provider(self, data: mujoco.MjData):
+        """Provider for flows with Python fields: evaluate them for all centroids, then run
+        the same kernel and mapping (this path runs Python every step)."""
+        arrays = self.arrays(self.model, data)
+        w = np.zeros(6 * self.model.nbody)
+        ints = [np.ascontiguousarray(a, dtype=np.int64) for a in
+                (self.model.body_parentid, self.model.body_rootid, self.model.dof_bodyid)]
+        self._param_array[4] = 1.0
+
+        def provider(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+            pts = self.world_centroids(d)
+            ext = np.zeros_like(pts)
+            for f in self.flow.python_fields:
+                v = np.asarray(f.fn(pts, d.time), dtype=float)
+                if v.shape != pts.shape:
+                    raise InputError(f"flow field returned shape {v.shape}, expected {pts.shape}")
+                ext += v
+            self._ext[:] = ext.reshape(-1)
+            w[:] = 0.0
+            surface_kernel(w, *arrays)
+            if map_wrenches(w, m.nbody, m.nv, *ints, d.cdof.reshape(-1),
+                            d.subtree_com.reshape(-1), d.qfrc_passive) != 0:
+                raise InputError("non-finite fluid force (diverged state or NaN in the flow field)")
+
+        provider.name = self.name  # type: ignore[attr-defined]
+        return provider
+
+    def world_centroids(self, data: mujoco.MjData) -> np.ndarray:
+        """(n, 3) world positions of the polygon centroids."""
+        p = self.polygons
+        R = data.xmat[p.body].reshape(-1, 3, 3)
+        return data.xpos[p.body] + np.einsum("nij,nj->ni", R, p.centroid)
+
+    def evaluate(self, data: mujoco.MjData) -> SurfaceReport:
+        """Every force term per polygon for the current state (positions and velocities
+        must be current: call ``mj_forward`` first). Does not touch ``qfrc_passive``."""
+        n = len(self.polygons)
+        rec = np.zeros(16 * n)
+        w = np.zeros(6 * self.model.nbody)
+        arrays = self.arrays(self.model, data, record=rec)
+        if self.flow.has_python:
+            pts = self.world_centroids(data)
+            ext = sum(np.asarray(f.fn(pts, data.time), dtype=float) for f in self.flow.python_fields)
+            arrays[17] = np.ascontiguousarray(ext, dtype=float).reshape(-1)
+            arrays[15] = self._param_array.copy()
+            arrays[15][4] = 1.0
+        surface_kernel(w, *arrays)
+        r = rec.reshape(n, 16)
+        wb = w.reshape(-1, 6)
+        return SurfaceReport(
+            drag=r[:, 0:3].copy(), lift=r[:, 3:6].copy(), friction=r[:, 6:9].copy(),
+            aoa=r[:, 9].copy(), submerged=r[:, 10].copy(), points=r[:, 13:16].copy(),
+            body_force=wb[:, 3:6].copy(), body_torque=wb[:, 0:3].copy(),
+        )
