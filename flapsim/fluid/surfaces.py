@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from flapsim.errors import InputError
-from flapsim.fluid.coefficients import N_SAMPLES, CoefficientTable, get_table
+from flapsim.fluid.coefficients import CoefficientTable, get_table
 from flapsim.fluid.flow import FlowField, flow_at
 from flapsim.sim.callbacks import (
     CompiledProvider,
@@ -268,13 +268,32 @@ class FluidParams:
         return np.array([self.density, self.friction, float(self.front_facing_only), z, 0.0])
 
 
-@njit(cache=True)
+#: samples of the kernel's tables over the pseudo-angle d in [0, 2] (see ``pseudo_angle_tables``)
+KERNEL_SAMPLES = 721
+
+
+def pseudo_angle_tables(table: CoefficientTable) -> tuple[np.ndarray, np.ndarray]:
+    """Resample a table on a uniform grid of the pseudo-angle ``d`` the kernel uses.
+
+    With ``y = |V_d . N|`` and ``x`` the signed in-plane flow (``-V_d . F``, or ``|V_t|``),
+    ``d = y / (|x| + y)`` for ``x >= 0`` and ``2 - y / (|x| + y)`` otherwise: monotone in
+    the angle of attack (``tan a = d / (1 - d)`` on the first half) and needs one
+    division instead of an ``atan2``. The grid is 0.32-0.64 deg apart in angle.
+    """
+    d = np.linspace(0.0, 2.0, KERNEL_SAMPLES)
+    aoa = np.where(d <= 1.0, np.arctan2(d, 1.0 - d), np.pi - np.arctan2(2.0 - d, d - 1.0))
+    cl, cd = table.at(np.rad2deg(aoa))
+    return cl, cd
+
+
+@njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
 def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, pext, ptab,
                    cl_tab, cd_tab, flow, params, tnow, ext_flow, rec):
     """Add every polygon's force to the body wrench accumulator ``w``.
 
-    ``params`` = (density, friction, front_only, surface_z, use_ext_flow); ``rec`` is
-    filled per polygon when its size allows (see :class:`SurfaceReport`).
+    ``params`` = (density, friction, front_only, surface_z, use_ext_flow); ``cl_tab`` and
+    ``cd_tab`` are the tables on the pseudo-angle grid (:func:`pseudo_angle_tables`);
+    ``rec`` is filled per polygon when its size allows (see :class:`SurfaceReport`).
     """
     rho = params[0]
     eta = params[1]
@@ -283,8 +302,8 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
     use_ext = params[4] > 0.5
     record = rec.size >= 16 * pbody.size
     t = tnow[0]
-    nsamp = 361  # coefficients.N_SAMPLES
-    nseg = nsamp - 1
+    nsamp = 721  # KERNEL_SAMPLES
+    half_seg = 0.5 * (nsamp - 1)
     for i in range(pbody.size):
         b = pbody[i]
         m = 9 * b
@@ -300,20 +319,6 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             rec[16 * i + 13] = px
             rec[16 * i + 14] = py
             rec[16 * i + 15] = pz
-        # submerged fraction under a free surface
-        frac = 1.0
-        if zs < 1e300:
-            a = pn[3 * i]
-            c = pn[3 * i + 1]
-            e = pn[3 * i + 2]
-            nz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
-            half = pext[i] * np.sqrt(max(0.0, 1.0 - nz * nz))
-            if half > 1e-12:
-                frac = min(1.0, max(0.0, 0.5 + (zs - pz) / (2.0 * half)))
-            else:
-                frac = 1.0 if pz < zs else 0.0
-            if frac <= 0.0:
-                continue
         # world normal and forward
         a = pn[3 * i]
         c = pn[3 * i + 1]
@@ -321,13 +326,20 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         nx = xmat[m] * a + xmat[m + 1] * c + xmat[m + 2] * e
         ny = xmat[m + 3] * a + xmat[m + 4] * c + xmat[m + 5] * e
         nz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
+        # submerged fraction under a free surface
+        frac = 1.0
+        if zs < 1e300:
+            half = pext[i] * np.sqrt(max(0.0, 1.0 - nz * nz))
+            if half > 1e-12:
+                frac = min(1.0, max(0.0, 0.5 + (zs - pz) / (2.0 * half)))
+            else:
+                frac = 1.0 if pz < zs else 0.0
+            if frac <= 0.0:
+                continue
         a = pf[3 * i]
         c = pf[3 * i + 1]
         e = pf[3 * i + 2]
         has_f = a * a + c * c + e * e > 0.5
-        fx = xmat[m] * a + xmat[m + 1] * c + xmat[m + 2] * e
-        fy = xmat[m + 3] * a + xmat[m + 4] * c + xmat[m + 5] * e
-        fz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
         # body point velocity (cvel = [omega, v] at the root's subtree com)
         r = rootid[b]
         dx = px - scom[3 * r]
@@ -336,23 +348,23 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         wx = cvel[6 * b]
         wy = cvel[6 * b + 1]
         wz = cvel[6 * b + 2]
-        bvx = cvel[6 * b + 3] + wy * dz - wz * dy
-        bvy = cvel[6 * b + 4] + wz * dx - wx * dz
-        bvz = cvel[6 * b + 5] + wx * dy - wy * dx
         ux, uy, uz = flow_at(flow, px, py, pz, t)
         if use_ext:
             ux += ext_flow[3 * i]
             uy += ext_flow[3 * i + 1]
             uz += ext_flow[3 * i + 2]
-        vx = ux - bvx
-        vy = uy - bvy
-        vz = uz - bvz
+        vx = ux - (cvel[6 * b + 3] + wy * dz - wz * dy)
+        vy = uy - (cvel[6 * b + 4] + wz * dx - wx * dz)
+        vz = uz - (cvel[6 * b + 5] + wx * dy - wy * dx)
         vn = vx * nx + vy * ny + vz * nz
         if front_only and vn >= 0.0:
             continue
         area = parea[i] * frac
         # split: drag/lift part (in the N-F plane, or everything) and friction part
         if has_f:
+            fx = xmat[m] * a + xmat[m + 1] * c + xmat[m + 2] * e
+            fy = xmat[m + 3] * a + xmat[m + 4] * c + xmat[m + 5] * e
+            fz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
             sx = ny * fz - nz * fy
             sy = nz * fx - nx * fz
             sz = nx * fy - ny * fx
@@ -360,61 +372,54 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             tx = vs * sx
             ty = vs * sy
             tz = vs * sz
-            dvx = vx - tx
-            dvy = vy - ty
-            dvz = vz - tz
+            # in-plane flow: its normal part vn (V.N is unchanged by removing V.S) and
+            # its chordwise part x, positive when the flow meets the +F edge first
+            x = -(vx * fx + vy * fy + vz * fz)
         else:
             tx = vx - vn * nx
             ty = vy - vn * ny
             tz = vz - vn * nz
-            dvx = vx
-            dvy = vy
-            dvz = vz
+            x = np.sqrt(tx * tx + ty * ty + tz * tz)
+        dvx = vx - tx if has_f else vx
+        dvy = vy - ty if has_f else vy
+        dvz = vz - tz if has_f else vz
         frx = eta * area * tx
         fry = eta * area * ty
         frz = eta * area * tz
-        sp2 = dvx * dvx + dvy * dvy + dvz * dvz
+        y = abs(vn)
+        ax = abs(x)
+        sp2 = vn * vn + x * x
         drx = 0.0
         dry = 0.0
         drz = 0.0
         lfx = 0.0
         lfy = 0.0
         lfz = 0.0
-        aoa = 0.0
         if sp2 > 1e-24:
-            sp = np.sqrt(sp2)
-            dn = dvx * nx + dvy * ny + dvz * nz
-            if has_f:
-                aoa = np.arctan2(abs(dn), -(dvx * fx + dvy * fy + dvz * fz))
-            else:
-                aoa = np.arctan2(abs(dn), np.sqrt(max(0.0, sp2 - dn * dn)))
-            # table lookup on the uniform 0..pi grid
+            s = y / (ax + y)
+            dd = s if x >= 0.0 else 2.0 - s
             tab = ptab[i] * nsamp
-            u = aoa * (nseg / np.pi)
-            k0 = min(int(u), nseg - 1)
-            s = u - k0
-            cl = cl_tab[tab + k0] * (1.0 - s) + cl_tab[tab + k0 + 1] * s
-            cd = cd_tab[tab + k0] * (1.0 - s) + cd_tab[tab + k0 + 1] * s
-            if aoa > 0.5 * np.pi:
-                cl = -cl
+            u = dd * half_seg
+            k0 = min(int(u), nsamp - 2)
+            fr = u - k0
+            cl = cl_tab[tab + k0] * (1.0 - fr) + cl_tab[tab + k0 + 1] * fr
+            cd = cd_tab[tab + k0] * (1.0 - fr) + cd_tab[tab + k0 + 1] * fr
+            if x < 0.0:
+                cl = -cl  # past 90 deg a symmetric table's lift axis has turned over
+            sp = np.sqrt(sp2)
             q = 0.5 * rho * sp2 * area
-            ex = dvx / sp
-            ey = dvy / sp
-            ez = dvz / sp
-            drx = q * cd * ex
-            dry = q * cd * ey
-            drz = q * cd * ez
-            sg = 1.0 if dn >= 0.0 else -1.0
-            proj = sg * (nx * ex + ny * ey + nz * ez)
-            lx = sg * nx - proj * ex
-            ly = sg * ny - proj * ey
-            lz = sg * nz - proj * ez
-            ln = np.sqrt(lx * lx + ly * ly + lz * lz)
-            if ln > 1e-12:
-                g = q * cl / ln
-                lfx = g * lx
-                lfy = g * ly
-                lfz = g * lz
+            g = q * cd / sp
+            drx = g * dvx
+            dry = g * dvy
+            drz = g * dvz
+            # unit lift: (sg N - (y/sp) e) / (|x|/sp), with e = V_d/sp and sg = sign(V_d.N)
+            if ax > 1e-12 * sp:
+                h = q * cl / ax
+                sg = sp if vn >= 0.0 else -sp
+                k = y / sp
+                lfx = h * (sg * nx - k * dvx)
+                lfy = h * (sg * ny - k * dvy)
+                lfz = h * (sg * nz - k * dvz)
         Fx = drx + lfx + frx
         Fy = dry + lfy + fry
         Fz = drz + lfz + frz
@@ -430,10 +435,8 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             rec[o + 6] = frx
             rec[o + 7] = fry
             rec[o + 8] = frz
-            rec[o + 9] = aoa
+            rec[o + 9] = np.arctan2(y, x)
             rec[o + 10] = frac
-            rec[o + 11] = vx
-            rec[o + 12] = vy
     return 0
 
 
@@ -496,12 +499,12 @@ class SurfaceForces(CompiledProvider):
         self.params = params or FluidParams()
         self.flow = flow or FlowField()
         self._param_array = self.params.pack()
-        self._cl = np.concatenate([t.cl for t in self.tables])
-        self._cd = np.concatenate([t.cd for t in self.tables])
+        resampled = [pseudo_angle_tables(t) for t in self.tables]
+        self._cl = np.concatenate([cl for cl, _ in resampled])
+        self._cd = np.concatenate([cd for _, cd in resampled])
         self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)
         self._ext = np.zeros(3 * len(polygons))
         self._no_record = np.zeros(1)
-        assert self._cl.size == N_SAMPLES * len(self.tables)
 
     def set_params(self, params: FluidParams) -> None:
         """Change density, friction or the free surface in place (takes effect at once)."""

@@ -35,12 +35,16 @@ def test_plate_in_uniform_flow_matches_formula(aoa_deg):
     sf = SurfaceForces(m, ps, [table], FluidParams(RHO), FlowField([Uniform(wind)]))
     mujoco.mj_forward(m, d)
     r = sf.evaluate(d)
-    cl, cd = table.at(aoa_deg)
+    # the analytic flat plate: CL = 2 sin a cos a, CD = 2 sin^2 a + 0.02
+    cl = 2 * np.sin(a) * np.cos(a)
+    cd = 2 * np.sin(a) ** 2 + 0.02
     q = 0.5 * RHO * U**2 * 0.04
-    # exact up to float rounding: the kernel evaluates the same formula
+    # the kernel interpolates linearly on a pseudo-angle grid <= 0.64 deg (0.0112 rad)
+    # apart: |error| <= h^2/8 max|C''| = 0.0112^2/8 * 4 = 6.3e-5 in each coefficient
+    tol = 6.3e-5 * q
     assert np.rad2deg(r.aoa[0]) == pytest.approx(aoa_deg, abs=1e-9)
-    assert np.linalg.norm(r.drag[0]) == pytest.approx(q * cd, rel=1e-9)
-    assert np.linalg.norm(r.lift[0]) == pytest.approx(q * abs(cl), rel=1e-9, abs=1e-12)
+    assert np.linalg.norm(r.drag[0]) == pytest.approx(q * cd, abs=tol)
+    assert np.linalg.norm(r.lift[0]) == pytest.approx(q * abs(cl), abs=tol)
     # drag along the relative wind, lift perpendicular to it and on the side the wind pushes
     assert np.allclose(np.cross(r.drag[0], wind), 0, atol=1e-12)
     assert abs(r.lift[0] @ wind) < 1e-9
@@ -49,7 +53,7 @@ def test_plate_in_uniform_flow_matches_formula(aoa_deg):
     # flat plate: the total force is normal to the plate (CN model) up to the CD0 floor
     total = r.force[0]
     tangential = np.hypot(total[0], total[1])
-    assert tangential <= q * 0.02 + 1e-12
+    assert tangential <= q * 0.02 + 2 * tol
 
 
 def test_moving_plate_in_still_air_equals_still_plate_in_wind():
@@ -87,6 +91,7 @@ def test_spinning_plate_sees_omega_cross_r():
     speed = omega * 0.5  # the centroid moves at omega x r = (0, 3.5, 0)
     q = 0.5 * RHO * speed**2 * 0.04
     assert np.rad2deg(r.aoa[0]) == pytest.approx(90.0, abs=1e-9)
+    # 90 deg is a grid point of every table, so the coefficient is exact (CD = 2.02)
     assert np.allclose(r.force[0], [0.0, -q * table.at(90.0)[1], 0.0], rtol=1e-9, atol=1e-12)
     # torque opposes the spin: tau_z = -r * |F|
     tau = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "plate")
