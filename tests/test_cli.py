@@ -1,0 +1,58 @@
+"""The command line: help, one-line errors, JSON output."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from flapsim.cli import COMMANDS, main
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "flapsim.cli", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_help_lists_every_command():
+    r = run_cli("--help")
+    assert r.returncode == 0
+    for name in COMMANDS:
+        assert name in r.stdout
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["no-such-command"], "invalid choice"),
+    (["demo", "--mass", "abc"], "invalid float value"),
+    (["bench", "nothing"], "unknown benchmark"),
+    (["demo", "--mass", "-1"], "must be > 0"),
+])
+def test_bad_arguments_give_one_line_errors(args, fragment):
+    r = run_cli(*args)
+    assert r.returncode == 2
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, r.stderr
+    assert fragment in lines[0]
+    assert "Traceback" not in r.stderr
+
+
+def test_every_command_takes_json_and_seed():
+    parser_help = {name: run_cli(name, "--help").stdout for name in COMMANDS}
+    for name, text in parser_help.items():
+        assert "--json" in text and "--seed" in text, name
+
+
+def test_demo_writes_json_with_the_terminal_velocity(tmp_path, capsys):
+    out = tmp_path / "demo.json"
+    assert main(["demo", "--seconds", "2", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    # the plate falls flat: simulated terminal velocity within 0.1 % of sqrt(2mg/(rho A CD))
+    assert data["relative_error"] < 1e-3
+    assert data["command"] == "demo" and "flapsim_version" in data
+    assert "terminal velocity" in capsys.readouterr().out
+
+
+def test_json_into_missing_folder_is_a_clear_error(tmp_path):
+    r = run_cli("demo", "--seconds", "0.1", "--json", str(tmp_path / "nope" / "x.json"))
+    assert r.returncode == 2
+    assert "does not exist" in r.stderr

@@ -1,0 +1,34 @@
+"""Atomic outputs: a failure while writing leaves no file behind."""
+
+import json
+
+import numpy as np
+import pytest
+
+from flapsim.errors import InputError
+from flapsim.io import atomic_path, save_npz, write_json
+
+
+def test_write_json_converts_numpy_and_nan(tmp_path):
+    p = tmp_path / "r.json"
+    write_json(p, {"a": np.float64(1.5), "b": np.arange(3), "c": float("nan")})
+    assert json.loads(p.read_text()) == {"a": 1.5, "b": [0, 1, 2], "c": None}
+
+
+def test_interrupted_write_leaves_old_file_and_no_temp(tmp_path):
+    p = tmp_path / "r.json"
+    p.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_path(p) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("killed")
+    assert p.read_text() == "old"
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["r.json"]
+
+
+def test_save_npz_refuses_pickles(tmp_path):
+    save_npz(tmp_path / "a.npz", x=np.arange(4))
+    assert np.array_equal(np.load(tmp_path / "a.npz")["x"], np.arange(4))
+    with pytest.raises(InputError, match="pickles"):
+        save_npz(tmp_path / "b.npz", x=np.array([{}], dtype=object))
+    assert not (tmp_path / "b.npz").exists()
