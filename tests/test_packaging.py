@@ -35,13 +35,13 @@ def test_installed_layout_loads_every_bundled_model(wheel, tmp_path):
     code = (
         "import mujoco, flapsim.assets as a\n"
         "from flapsim.sim.loading import load_model\n"
-        "assert str(a.asset_dir('bird_mjcf')).startswith(%r), a.asset_dir('bird_mjcf')\n"
+        f"assert str(a.asset_dir('bird_mjcf')).startswith({str(site)!r}), a.asset_dir('bird_mjcf')\n"
         "n = 0\n"
         "for folder, paths in a.bundled_models().items():\n"
         "    for p in paths:\n"
         "        load_model(p); n += 1\n"
         "print(n)\n"
-    ) % str(site)
+    )
     # run from an unrelated folder so nothing resolves through the working directory
     r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
                        env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin", "MUJOCO_GL": "egl"},
