@@ -1,0 +1,748 @@
+"""The dove: parameters (from ``flapsim/bird/data/dove.toml``), MJCF generation, and the
+feather polygons the force engine acts on.
+
+Skeleton (the flight paper, sec. 3.1): trunk on a free joint (unactuated), per side an
+upper arm (shoulder: flap, sweep, twist), forearm (elbow: flex, twist) and hand (wrist:
+flex), and a tail (bend, spread): 14 actuated DOF. Joint conventions are mirror
+symmetric: the same angle on the left and right DOF gives mirror-image poses, so a
+symmetric wingbeat has equal left/right angles and mirroring swaps them.
+
+* ``*_shoulder_flap``  + raises the wing (elevation), about the trunk's x axis.
+* ``*_shoulder_sweep`` + sweeps the wing back (retraction), about z.
+* ``*_shoulder_twist`` + pronates (leading edge down), about the upper arm.
+* ``*_elbow_flex``     + folds the forearm forward; ``*_elbow_twist`` + pronates.
+* ``*_wrist_flex``     + folds the hand back; the primaries fan in with it.
+* ``tail_bend``        + tilts the tail up; ``tail_spread`` + opens the fan (each half-fan
+  turns outward by this angle).
+
+Feathers: 10 primaries per hand, each a body on two hinges: a *fan* hinge tied to the
+wrist angle by a stiff tendon spring (the postpatagial ligament that spreads the
+primaries as the wrist extends) and a *twist* hinge about the shaft with the paper's
+spring (0.6e-4 N m/rad) and damper (0.6e-5 N m s/rad), range one-sided (0 .. trailing
+edge down): the vanes are held closed against the neighbouring feather at the
+downstroke and twist open at the upstroke. 9 secondaries per forearm and 3 tertials per
+upper arm are fixed to their bone. The tail fan is two half-fans of 6 rectrices on
+hinges; the actuated ``tail_spread`` DOF is a fixed tendon (mean of the two half-fan
+angles) and a tendon spring keeps the halves symmetric.
+
+No part of the bird collides with itself (feathers have contype = conaffinity = 0,
+bones collide only with the world): self-contacts cost ~15x in step time.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from flapsim.assets import asset_path
+from flapsim.bird import feathers as fz
+from flapsim.errors import DataFileError, ModelError
+
+PARAM_FILE = Path(__file__).resolve().parent / "data" / "dove.toml"
+#: Name suffix of the visual-only underside twin of each feather mesh (not a force polygon).
+UNDERSIDE = "_under"
+
+SIDE_DOFS = ("shoulder_flap", "shoulder_sweep", "shoulder_twist", "elbow_flex", "elbow_twist",
+             "wrist_flex")
+#: The 14 actuated DOF, in wingbeat parameter order (shoulder 3, elbow 2, wrist 1 per side; tail 2).
+DOF_NAMES: tuple[str, ...] = (
+    *(f"l_{n}" for n in SIDE_DOFS), *(f"r_{n}" for n in SIDE_DOFS), "tail_bend", "tail_spread"
+)
+N_DOF = len(DOF_NAMES)
+#: Index permutation that mirrors a 14-vector of joint angles (swap left and right).
+MIRROR_PERM = np.array([*range(6, 12), *range(0, 6), 12, 13])
+
+
+@dataclass(frozen=True)
+class DoveParams:
+    """All numbers that define the dove model (values and sources: ``data/dove.toml``)."""
+
+    total_mass: float
+    """Whole-bird mass, kg (flight paper ~0.170; Dunning 1993)."""
+    upper_arm_mass: float
+    """Upper-arm mass incl. tertials, kg (Harvard pigeon data scaled by mass)."""
+    forearm_mass: float
+    """Forearm mass incl. secondaries, kg (same source)."""
+    hand_mass: float
+    """Hand mass incl. primaries, kg (same source)."""
+    tail_mass: float
+    """Tail mass incl. rectrices, kg (same source)."""
+    trunk_semi_axes: tuple[float, float, float]
+    """Trunk ellipsoid semi-axes (x, y, z), m."""
+    head_offset: tuple[float, float, float]
+    """Head centre from the trunk centre, m."""
+    head_radius: float
+    """Head sphere radius, m."""
+    head_mass_fraction: float
+    """Share of the trunk+head mass in the head (inertia only)."""
+    shoulder_pos: tuple[float, float, float]
+    """Left shoulder joint from the trunk centre, m (right: mirrored)."""
+    shoulder_pitch_deg: float
+    """Fixed nose-up angle between trunk and wing at the neutral pose, deg (tuned, as in the paper)."""
+    upper_arm_length: float
+    """Humerus length, m."""
+    forearm_length: float
+    """Ulna length, m."""
+    hand_length: float
+    """Carpometacarpus + digits length, m."""
+    leading_edge_offset: float
+    """Coverts/patagium ahead of the bones, m."""
+    primary_mass: float
+    """Mass of one primary, kg."""
+    secondary_mass: float
+    """Mass of one secondary, kg."""
+    tertial_mass: float
+    """Mass of one tertial, kg."""
+    primary_angle_deg: tuple[float, ...]
+    """P1..P10 shaft angle back from the hand axis at the extended wrist, deg."""
+    primary_length: tuple[float, ...]
+    """P1..P10 lengths, m."""
+    primary_root_width: float
+    """Exposed primary vane width at the root, m."""
+    primary_tip_width: float
+    """Exposed primary vane width near the tip, m."""
+    primary_lead_fraction: float
+    """Share of the primary's width ahead of its shaft (narrow outer vane)."""
+    twist_stiffness: float
+    """Primary twist spring, N m/rad (paper: 0.6e-4)."""
+    twist_damping: float
+    """Primary twist damper, N m s/rad (paper: 0.6e-5)."""
+    twist_max_deg: float
+    """Largest primary twist (trailing edge down), deg; the other direction is blocked at 0."""
+    fan_fold_wrist_deg: float
+    """Wrist flexion at which the primaries lie along the hand, deg."""
+    fan_stiffness: float
+    """Tendon spring tying each primary's fan angle to the wrist, N m/rad."""
+    fan_damping: float
+    """Damper of that tendon, N m s/rad."""
+    primary_segments: int
+    """Quads along a primary's shaft."""
+    secondary_length: tuple[float, ...]
+    """Secondary lengths from the innermost (S9) to the outermost (S1), m."""
+    secondary_outward_deg: tuple[float, ...]
+    """Secondary splay toward the tip, inner -> outer, deg."""
+    secondary_segments: int
+    """Quads along a secondary."""
+    tertial_length: tuple[float, ...]
+    """Tertial lengths, inner -> outer, m."""
+    tertial_inward_deg: tuple[float, ...]
+    """Tertial splay toward the body, inner -> outer, deg."""
+    tertial_segments: int
+    """Quads along a tertial."""
+    tail_root_pos: tuple[float, float, float]
+    """Tail root (bend hinge) from the trunk centre, m."""
+    rectrices_per_side: int
+    """Rectrices on each half-fan."""
+    rectrix_length: float
+    """Rectrix length, m."""
+    rectrix_width: float
+    """Exposed rectrix width, m."""
+    tail_base_fan_deg: float
+    """Angle between neighbouring rectrices within a half-fan, deg."""
+    tail_half_gap_deg: float
+    """Angle of the innermost rectrix from the centre line, deg."""
+    tail_sym_stiffness: float
+    """Tendon spring keeping the half-fans symmetric, N m/rad."""
+    tail_sym_damping: float
+    """Its damper, N m s/rad."""
+    rectrix_segments: int
+    """Quads along a rectrix."""
+    joint_damping: float
+    """Passive damping on the 14 actuated DOF, N m s/rad."""
+    joint_armature: float
+    """Armature on the 14 actuated DOF, kg m^2."""
+    pd_kp: float
+    """PD stiffness of the wing/tail servos, N m/rad (paper: 10)."""
+    pd_kv: float
+    """PD damping of the servos, N m s/rad (paper: 0.002)."""
+    timestep: float
+    """Integration step, s (paper: 1/2400)."""
+    source: str = field(default="", compare=False)
+    """Path of the parameter file these values came from."""
+
+    @classmethod
+    def load(cls, path: str | Path = PARAM_FILE) -> DoveParams:
+        """Read a dove parameter file (TOML), with a one-line error on a bad file."""
+        path = Path(path)
+        try:
+            raw = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise DataFileError(f"dove parameter file {path} does not exist") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise DataFileError(f"dove parameter file {path} is not valid TOML: {exc}") from None
+        try:
+            b, w, p, s, tl, t, j, pd = (raw[k] for k in ("body", "wing", "primaries", "secondaries",
+                                                        "tertials", "tail", "joints", "control"))
+            g = 1e-3
+            params = cls(
+                total_mass=b["total_mass"], upper_arm_mass=b["upper_arm_mass_g"] * g,
+                forearm_mass=b["forearm_mass_g"] * g, hand_mass=b["hand_mass_g"] * g,
+                tail_mass=b["tail_mass_g"] * g, trunk_semi_axes=tuple(b["trunk_semi_axes"]),
+                head_offset=tuple(b["head_offset"]), head_radius=b["head_radius"],
+                head_mass_fraction=b["head_mass_fraction"],
+                shoulder_pos=tuple(w["shoulder_pos"]), shoulder_pitch_deg=w["shoulder_pitch_deg"],
+                upper_arm_length=w["upper_arm_length"], forearm_length=w["forearm_length"],
+                hand_length=w["hand_length"], leading_edge_offset=w["leading_edge_offset"],
+                primary_mass=w["primary_mass_g"] * g, secondary_mass=w["secondary_mass_g"] * g,
+                tertial_mass=w["tertial_mass_g"] * g,
+                primary_angle_deg=tuple(p["angle_deg"]), primary_length=tuple(p["length"]),
+                primary_root_width=p["root_width"], primary_tip_width=p["tip_width"],
+                primary_lead_fraction=p["leading_vane_fraction"],
+                twist_stiffness=p["twist_stiffness"], twist_damping=p["twist_damping"],
+                twist_max_deg=p["twist_max_deg"], fan_fold_wrist_deg=p["fan_fold_wrist_deg"],
+                fan_stiffness=p["fan_stiffness"], fan_damping=p["fan_damping"],
+                primary_segments=p["segments"],
+                secondary_length=tuple(s["length"]), secondary_outward_deg=tuple(s["outward_deg"]),
+                secondary_segments=s["segments"],
+                tertial_length=tuple(tl["length"]), tertial_inward_deg=tuple(tl["inward_deg"]),
+                tertial_segments=tl["segments"],
+                tail_root_pos=tuple(t["root_pos"]), rectrices_per_side=t["rectrices_per_side"],
+                rectrix_length=t["length"], rectrix_width=t["width"],
+                tail_base_fan_deg=t["base_fan_deg"], tail_half_gap_deg=t["half_gap_deg"],
+                tail_sym_stiffness=t["spread_sym_stiffness"],
+                tail_sym_damping=t["spread_sym_damping"], rectrix_segments=t["segments"],
+                joint_damping=j["damping"], joint_armature=j["armature"],
+                pd_kp=pd["kp"], pd_kv=pd["kv"], timestep=pd["timestep"],
+                source=str(path),
+            )
+        except KeyError as exc:
+            raise DataFileError(f"dove parameter file {path} lacks key {exc}") from None
+        params.validate()
+        return params
+
+    def validate(self) -> None:
+        n = len(self.primary_angle_deg)
+        if len(self.primary_length) != n:
+            raise DataFileError("primaries: angle_deg and length need the same count")
+        if len(self.secondary_length) != len(self.secondary_outward_deg):
+            raise DataFileError("secondaries: length and outward_deg need the same count")
+        if len(self.tertial_length) != len(self.tertial_inward_deg):
+            raise DataFileError("tertials: length and inward_deg need the same count")
+        wing_parts = 10 * 0 + self.upper_arm_mass + self.forearm_mass + self.hand_mass
+        if self.total_mass <= 2 * wing_parts + self.tail_mass:
+            raise DataFileError("body: total_mass must exceed the wing and tail masses")
+        if self.hand_mass <= n * self.primary_mass:
+            raise DataFileError("hand mass must exceed the primaries' mass")
+
+    @property
+    def trunk_mass(self) -> float:
+        """Trunk + head mass: the total minus wings and tail, kg."""
+        return self.total_mass - 2 * (self.upper_arm_mass + self.forearm_mass + self.hand_mass) \
+            - self.tail_mass
+
+
+# -- geometry --------------------------------------------------------------------------------
+
+
+def left_feathers(p: DoveParams) -> list[fz.Feather]:
+    """All left-wing feathers and the left half-fan, in their bodies' frames."""
+    out: list[fz.Feather] = []
+    le = p.leading_edge_offset
+    # tertials on the upper arm (body frame origin at the shoulder, bone along +y)
+    nt = len(p.tertial_length)
+    spacing = p.upper_arm_length / nt
+    for k, (length, inward) in enumerate(zip(p.tertial_length, p.tertial_inward_deg, strict=True)):
+        a = np.radians(inward)
+        shaft = np.array([-np.cos(a), -np.sin(a), 0.0])
+        root = np.array([le, (k + 0.5) * spacing, 0.0])
+        v, f = fz.strip(root, shaft, np.array([np.sin(a), -np.cos(a), 0.0]) * -1, length + le,
+                        spacing, spacing, 0.5, p.tertial_segments, tip_taper=0.8)
+        out.append(_feather(f"l_t{k + 1}", "tertial", "l_humerus", v, f, shaft, p.tertial_mass))
+    # secondaries on the forearm, listed inner (S9) -> outer (S1)
+    ns = len(p.secondary_length)
+    spacing = p.forearm_length / ns
+    for k, (length, out_deg) in enumerate(zip(p.secondary_length, p.secondary_outward_deg,
+                                              strict=True)):
+        a = np.radians(out_deg)
+        shaft = np.array([-np.cos(a), np.sin(a), 0.0])
+        root = np.array([le, (k + 0.5) * spacing, 0.0])
+        v, f = fz.strip(root, shaft, np.array([np.sin(a), np.cos(a), 0.0]), length + le,
+                        spacing, spacing, 0.5, p.secondary_segments, tip_taper=0.8)
+        out.append(_feather(f"l_s{ns - k}", "secondary", "l_forearm", v, f, shaft,
+                            p.secondary_mass))
+    # primaries: each in its own body whose origin is the feather root
+    for k, (ang, length) in enumerate(zip(p.primary_angle_deg, p.primary_length, strict=True)):
+        a = np.radians(ang)
+        shaft = np.array([-np.sin(a), np.cos(a), 0.0])
+        lead = np.array([np.cos(a), np.sin(a), 0.0])
+        v, f = fz.strip(np.zeros(3), shaft, lead, length, p.primary_root_width,
+                        p.primary_tip_width, p.primary_lead_fraction, p.primary_segments)
+        out.append(_feather(f"l_p{k + 1}", "primary", f"l_p{k + 1}", v, f, shaft, p.primary_mass))
+    # rectrices on the left half-fan (origin at the tail root), inner -> outer
+    for k in range(p.rectrices_per_side):
+        a = np.radians(p.tail_half_gap_deg + k * p.tail_base_fan_deg)
+        shaft = np.array([-np.cos(a), np.sin(a), 0.0])
+        lead = np.array([np.sin(a), np.cos(a), 0.0])
+        v, f = fz.strip(np.zeros(3), shaft, lead, p.rectrix_length, 0.6 * p.rectrix_width,
+                        p.rectrix_width, 0.5, p.rectrix_segments, tip_taper=0.8)
+        out.append(_feather(f"l_r{k + 1}", "rectrix", "tail_l", v, f, shaft, rectrix_mass(p)))
+    return out
+
+
+def rectrix_mass(p: DoveParams) -> float:
+    """Each rectrix carries an equal share of 80% of the tail mass (the rest is the base)."""
+    return 0.8 * p.tail_mass / (2 * p.rectrices_per_side)
+
+
+def _feather(name, kind, body, v, f, shaft, mass) -> fz.Feather:
+    fwd = fz.in_plane_forward(v[f])
+    return fz.Feather(name, kind, body, v, f, np.asarray(shaft, float), fwd, float(mass))
+
+
+def mirror_feather(fe: fz.Feather) -> fz.Feather:
+    """The right-side twin of a left feather."""
+    return fz.Feather(
+        "r" + fe.name[1:], fe.kind, _mirror_name(fe.body), fz.mirror_point(fe.vertices),
+        fz.mirror_faces(fe.faces), fz.mirror_point(fe.shaft), fz.mirror_point(fe.forward), fe.mass,
+    )
+
+
+def _mirror_name(name: str) -> str:
+    if name.startswith("l_"):
+        return "r_" + name[2:]
+    if name == "tail_l":
+        return "tail_r"
+    return name
+
+
+def all_feathers(p: DoveParams) -> list[fz.Feather]:
+    left = left_feathers(p)
+    return left + [mirror_feather(f) for f in left]
+
+
+def primary_root(p: DoveParams, k: int) -> np.ndarray:
+    """Root of primary k (0-based, P1 innermost) in the hand frame: spread along the hand."""
+    n = len(p.primary_angle_deg)
+    return np.array([0.0, p.hand_length * k / (n - 1), 0.0])
+
+
+def fan_ratio(p: DoveParams, k: int) -> float:
+    """Fan-in angle of primary k per radian of wrist flexion (it reaches the hand axis at
+    ``fan_fold_wrist_deg``)."""
+    return float(p.primary_angle_deg[k] / p.fan_fold_wrist_deg)
+
+
+# -- inertia ---------------------------------------------------------------------------------
+
+
+class _Inertia:
+    """Sum of rigid parts: mass, centre of mass and inertia tensor (about the com)."""
+
+    def __init__(self) -> None:
+        self.parts: list[tuple[float, np.ndarray, np.ndarray]] = []
+
+    def add(self, mass: float, com, inertia) -> None:
+        self.parts.append((float(mass), np.asarray(com, float), np.asarray(inertia, float)))
+
+    def rod(self, mass: float, a, b, radius: float = 0.003) -> None:
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        L = np.linalg.norm(b - a)
+        u = (b - a) / L
+        i_perp = mass * (L**2 / 12 + radius**2 / 4)
+        i_ax = mass * radius**2 / 2
+        self.add(mass, (a + b) / 2, i_perp * np.eye(3) + (i_ax - i_perp) * np.outer(u, u))
+
+    def ellipsoid(self, mass: float, c, semi) -> None:
+        a, b, cc = semi
+        self.add(mass, c, mass / 5 * np.diag([b * b + cc * cc, a * a + cc * cc, a * a + b * b]))
+
+    def plates(self, feathers: list[fz.Feather]) -> None:
+        for fe in feathers:
+            com, inertia = fz.plate_inertia(fe.triangles, fe.mass)
+            self.add(fe.mass, com, inertia)
+
+    def total(self) -> tuple[float, np.ndarray, np.ndarray]:
+        m = sum(p[0] for p in self.parts)
+        com = sum(p[0] * p[1] for p in self.parts) / m
+        inertia = np.zeros((3, 3))
+        for mi, ci, ii in self.parts:
+            r = ci - com
+            inertia += ii + mi * (r @ r * np.eye(3) - np.outer(r, r))
+        return m, com, inertia
+
+
+def _inertial_xml(inert: _Inertia) -> str:
+    m, com, i = inert.total()
+    full = (i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2])
+    return (f'<inertial pos="{_v(com)}" mass="{m:.6g}" '
+            f'fullinertia="{" ".join(f"{x:.6g}" for x in full)}"/>')
+
+
+def _v(a) -> str:
+    return " ".join(f"{x:.6g}" for x in np.asarray(a, float).ravel())
+
+
+# -- MJCF ------------------------------------------------------------------------------------
+
+_HEADER = """<mujoco model="dove">
+  <!-- GENERATED by scripts/dove_generate.py from {source}; do not edit by hand.
+       Collared dove (Streptopelia decaocto), {mass:.3f} kg, wingspan {span:.3f} m,
+       14 actuated DOF, {nfeather} feathers, {ntri} feather triangles. -->
+  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
+  <option timestep="{dt:.10g}" integrator="implicitfast" gravity="0 0 -9.81"
+          density="0" viscosity="0" iterations="20" ls_iterations="10">
+    <flag energy="disable"/>
+  </option>
+  <size memory="4M"/>
+  <visual>
+    <global offwidth="1280" offheight="720"/>
+    <quality shadowsize="2048"/>
+    <map znear="0.01" zfar="500"/>
+  </visual>
+  <!-- extent sets the clip planes and visual scales: the bird's size, not the ground's -->
+  <statistic extent="0.5" center="0 0 10"/>
+  <default>
+    <joint damping="{jdamp:.6g}" armature="{jarm:.6g}"/>
+    <geom contype="0" conaffinity="0"/>
+    <general gaintype="fixed" biastype="affine" gainprm="1" biasprm="0 {nkp:.6g} {nkv:.6g}"/>
+    <default class="bone">
+      <geom type="capsule" size="0.004" rgba="0.55 0.48 0.42 1" contype="2" conaffinity="1"/>
+    </default>
+    <default class="feather">
+      <geom type="mesh" rgba="0.70 0.66 0.62 1"/>
+    </default>
+    <default class="primary">
+      <geom type="mesh" rgba="0.50 0.47 0.45 1"/>
+      <joint damping="0" armature="0"/>
+    </default>
+    <default class="rectrix">
+      <geom type="mesh" rgba="0.60 0.56 0.52 1"/>
+    </default>
+  </default>
+  <asset>
+    <texture name="sky" type="skybox" builtin="gradient" rgb1="0.55 0.70 0.90" rgb2="0.95 0.97 1"
+             width="512" height="512"/>
+    <texture name="grid" type="2d" builtin="checker" rgb1="0.42 0.55 0.33" rgb2="0.36 0.48 0.28"
+             width="512" height="512" mark="edge" markrgb="0.3 0.4 0.25"/>
+    <material name="grid" texture="grid" texrepeat="200 200" reflectance="0"/>
+    <material name="plumage" rgba="0.80 0.76 0.70 1" specular="0.1"/>
+{meshes}
+  </asset>
+  <worldbody>
+    <light name="sun" directional="true" pos="0 0 50" dir="-0.3 0.2 -1" diffuse="0.8 0.8 0.8"/>
+    <geom name="ground" type="plane" size="2000 2000 0.1" material="grid" contype="0"
+          conaffinity="0"/>
+"""
+
+
+def build_xml(p: DoveParams) -> str:
+    """The complete dove MJCF as a string (meshes inline)."""
+    feathers = all_feathers(p)
+    by_body: dict[str, list[fz.Feather]] = {}
+    for fe in feathers:
+        by_body.setdefault(fe.body, []).append(fe)
+    meshes = []
+    for fe in feathers:
+        meshes.append(f'    <mesh name="{fe.name}" vertex="{_v(fe.vertices)}" '
+                      f'face="{" ".join(str(int(i)) for i in fe.faces.ravel())}" inertia="shell"/>')
+        # the underside: MuJoCo culls back faces, so a visual twin with reversed winding
+        meshes.append(f'    <mesh name="{fe.name}{UNDERSIDE}" vertex="{_v(fe.vertices)}" '
+                      f'face="{" ".join(str(int(i)) for i in fe.faces[:, ::-1].ravel())}" '
+                      'inertia="shell"/>')
+    span = 2 * max(np.max(np.abs(_world_tip_y(p))), 0)
+    out = [_HEADER.format(
+        source=Path(p.source).name or "dove.toml", mass=p.total_mass, span=span,
+        nfeather=len(feathers), ntri=sum(len(f.faces) for f in feathers), dt=p.timestep,
+        jdamp=p.joint_damping, jarm=p.joint_armature, nkp=-p.pd_kp, nkv=-p.pd_kv,
+        meshes="\n".join(meshes),
+    )]
+    out.append(_trunk_xml(p, by_body))
+    out.append("  </worldbody>\n")
+    out.append(_tendons_xml(p))
+    out.append(_actuators_xml())
+    out.append(_sensors_xml())
+    out.append("</mujoco>\n")
+    return "".join(out)
+
+
+def _world_tip_y(p: DoveParams) -> np.ndarray:
+    y0 = p.shoulder_pos[1] + p.upper_arm_length + p.forearm_length
+    tips = []
+    for k, (a, L) in enumerate(zip(p.primary_angle_deg, p.primary_length, strict=True)):
+        tips.append(y0 + primary_root(p, k)[1] + L * np.cos(np.radians(a)))
+    return np.array(tips)
+
+
+def _trunk_xml(p: DoveParams, by_body: dict[str, list[fz.Feather]]) -> str:
+    tr = _Inertia()
+    mh = p.trunk_mass * p.head_mass_fraction
+    tr.ellipsoid(p.trunk_mass - mh, (0, 0, 0), p.trunk_semi_axes)
+    r = p.head_radius
+    tr.ellipsoid(mh, p.head_offset, (r, r, r))
+    ho = np.asarray(p.head_offset)
+    beak_a = ho + np.array([0.8 * r, 0, -0.2 * r])
+    beak_b = ho + np.array([1.9 * r, 0, -0.45 * r])
+    eye = ho + np.array([0.45 * r, 0.62 * r, 0.35 * r])
+    ax, ay, az = p.trunk_semi_axes
+    lines = [
+        '    <body name="trunk" pos="0 0 10">',
+        '      <freejoint name="root"/>',
+        f"      {_inertial_xml(tr)}",
+        f'      <geom name="trunk" type="ellipsoid" size="{ax} {ay} {az}" material="plumage"'
+        ' contype="2" conaffinity="1"/>',
+        f'      <geom name="neck" type="ellipsoid" size="{0.55 * ax:.4g} {0.8 * ay:.4g} '
+        f'{0.8 * az:.4g}" pos="{_v(0.5 * ho + np.array([0, 0, 0.004]))}" euler="0 -0.5 0" '
+        'material="plumage"/>',
+        f'      <geom name="head" type="sphere" size="{r}" pos="{_v(ho)}" '
+        'rgba="0.72 0.68 0.66 1" contype="2" conaffinity="1"/>',
+        f'      <geom name="beak" type="capsule" size="{0.22 * r:.4g}" fromto="{_v(beak_a)} '
+        f'{_v(beak_b)}" rgba="0.15 0.12 0.12 1"/>',
+        f'      <geom name="l_eye" type="sphere" size="{0.16 * r:.4g}" pos="{_v(eye)}" '
+        'rgba="0.05 0.02 0.02 1"/>',
+        f'      <geom name="r_eye" type="sphere" size="{0.16 * r:.4g}" '
+        f'pos="{_v(fz.mirror_point(eye))}" rgba="0.05 0.02 0.02 1"/>',
+        '      <site name="com_marker" pos="0 0 0" size="0.004"/>',
+        '      <camera name="side" pos="0 -0.9 0.05" xyaxes="1 0 0 0 0.1 1" mode="trackcom"/>',
+    ]
+    for side in ("l", "r"):
+        lines.append(_wing_xml(p, side, by_body))
+    lines.append(_tail_xml(p, by_body))
+    lines.append("    </body>")
+    return "\n".join(lines) + "\n"
+
+
+def _ax(side: str, a) -> str:
+    a = np.asarray(a, float)
+    return _v(a if side == "l" else fz.mirror_axis(a))
+
+
+def _pt(side: str, a) -> str:
+    a = np.asarray(a, float)
+    return _v(a if side == "l" else fz.mirror_point(a))
+
+
+def _feather_geoms(fes: list[fz.Feather], cls: str, indent: str) -> list[str]:
+    out = []
+    for fe in fes:
+        out.append(f'{indent}<geom name="{fe.name}" class="{cls}" mesh="{fe.name}"/>')
+        out.append(f'{indent}<geom name="{fe.name}{UNDERSIDE}" class="{cls}" '
+                   f'mesh="{fe.name}{UNDERSIDE}"/>')
+    return out
+
+
+def _wing_xml(p: DoveParams, s: str, by_body) -> str:
+    th = np.radians(p.shoulder_pitch_deg)
+    quat = (np.cos(-th / 2), 0.0, np.sin(-th / 2), 0.0)  # nose-up incidence about +y (both sides)
+    Lh, Lf, Lw = p.upper_arm_length, p.forearm_length, p.hand_length
+    tert = by_body[f"{s}_humerus"]
+    sec = by_body[f"{s}_forearm"]
+    hum = _Inertia()
+    hum.rod(p.upper_arm_mass - sum(f.mass for f in tert), (0, 0, 0), (0, Lh if s == "l" else -Lh, 0))
+    hum.plates(tert)
+    fore = _Inertia()
+    fore.rod(p.forearm_mass - sum(f.mass for f in sec), (0, 0, 0), (0, Lf if s == "l" else -Lf, 0))
+    fore.plates(sec)
+    hand = _Inertia()
+    n_prim = len(p.primary_angle_deg)
+    hand.rod(p.hand_mass - n_prim * p.primary_mass, (0, 0, 0), (0, Lw if s == "l" else -Lw, 0),
+             radius=0.005)
+    i1, i2, i3 = "      ", "        ", "          "
+    L = [
+        f'{i1}<body name="{s}_humerus" pos="{_pt(s, p.shoulder_pos)}" quat="{_v(quat)}">',
+        f"{i2}{_inertial_xml(hum)}",
+        f'{i2}<joint name="{s}_shoulder_flap" axis="{_ax(s, (1, 0, 0))}"/>',
+        f'{i2}<joint name="{s}_shoulder_sweep" axis="{_ax(s, (0, 0, 1))}"/>',
+        f'{i2}<joint name="{s}_shoulder_twist" axis="{_ax(s, (0, 1, 0))}"/>',
+        f'{i2}<geom name="{s}_humerus" class="bone" fromto="0 0 0 {_pt(s, (0, Lh, 0))}"/>',
+        *_feather_geoms(tert, "feather", i2),
+        f'{i2}<body name="{s}_forearm" pos="{_pt(s, (0, Lh, 0))}">',
+        f"{i3}{_inertial_xml(fore)}",
+        f'{i3}<joint name="{s}_elbow_flex" axis="{_ax(s, (0, 0, -1))}"/>',
+        f'{i3}<joint name="{s}_elbow_twist" axis="{_ax(s, (0, 1, 0))}"/>',
+        f'{i3}<geom name="{s}_forearm" class="bone" fromto="0 0 0 {_pt(s, (0, Lf, 0))}"/>',
+        *_feather_geoms(sec, "feather", i3),
+        f'{i3}<body name="{s}_hand" pos="{_pt(s, (0, Lf, 0))}">',
+        f"{i3}  {_inertial_xml(hand)}",
+        f'{i3}  <joint name="{s}_wrist_flex" axis="{_ax(s, (0, 0, 1))}"/>',
+        f'{i3}  <geom name="{s}_hand" class="bone" size="0.0035" '
+        f'fromto="0 0 0 {_pt(s, (0, Lw, 0))}"/>',
+    ]
+    tw = np.radians(p.twist_max_deg)
+    for k in range(n_prim):
+        fe = by_body[f"{s}_p{k + 1}"][0]
+        pi = _Inertia()
+        pi.plates([fe])
+        left_shaft = fe.shaft if s == "l" else fz.mirror_point(fe.shaft)
+        L += [
+            f'{i3}  <body name="{s}_p{k + 1}" pos="{_pt(s, primary_root(p, k))}">',
+            f"{i3}    {_inertial_xml(pi)}",
+            f'{i3}    <joint name="{s}_p{k + 1}_fan" class="primary" axis="{_ax(s, (0, 0, -1))}" '
+            f'stiffness="0" damping="0"/>',
+            # axis -shaft: + turns the trailing vane down (open); the range blocks the other way
+            f'{i3}    <joint name="{s}_p{k + 1}_twist" class="primary" '
+            f'axis="{_ax(s, -left_shaft)}" range="0 {tw:.6g}" stiffness="{p.twist_stiffness:.6g}" '
+            f'damping="{p.twist_damping:.6g}" solreflimit="0.001 1" '
+            f'solimplimit="0.95 0.99 0.001"/>',
+            *_feather_geoms([fe], "primary", i3 + "    "),
+            f"{i3}  </body>",
+        ]
+    L += [f"{i3}</body>", f"{i2}</body>", f"{i1}</body>"]
+    return "\n".join(L)
+
+
+def _tail_xml(p: DoveParams, by_body) -> str:
+    base = _Inertia()
+    base.rod(0.2 * p.tail_mass, (0, 0, 0), (-0.02, 0, 0), radius=0.006)
+    L = [
+        f'      <body name="tail" pos="{_v(p.tail_root_pos)}">',
+        f"        {_inertial_xml(base)}",
+        '        <joint name="tail_bend" axis="0 1 0"/>',
+        '        <geom name="tail_base" class="bone" size="0.007" fromto="0.01 0 0 -0.02 0 0"/>',
+    ]
+    for s in ("l", "r"):
+        fes = by_body[f"tail_{s}"]
+        half = _Inertia()
+        half.plates(fes)
+        L += [
+            f'        <body name="tail_{s}">',
+            f"          {_inertial_xml(half)}",
+            f'          <joint name="tail_spread_{s}" axis="{_ax(s, (0, 0, -1))}"/>',
+            *_feather_geoms(fes, "rectrix", "          "),
+            "        </body>",
+        ]
+    L.append("      </body>")
+    return "\n".join(L)
+
+
+def _tendons_xml(p: DoveParams) -> str:
+    L = ["  <tendon>",
+         '    <fixed name="tail_spread" limited="false">',
+         '      <joint joint="tail_spread_l" coef="0.5"/><joint joint="tail_spread_r" coef="0.5"/>',
+         "    </fixed>",
+         f'    <fixed name="tail_sym" stiffness="{p.tail_sym_stiffness:.6g}" '
+         f'damping="{p.tail_sym_damping:.6g}" springlength="0">',
+         '      <joint joint="tail_spread_l" coef="1"/><joint joint="tail_spread_r" coef="-1"/>',
+         "    </fixed>"]
+    for s in ("l", "r"):
+        for k in range(len(p.primary_angle_deg)):
+            L += [f'    <fixed name="{s}_p{k + 1}_fan" stiffness="{p.fan_stiffness:.6g}" '
+                  f'damping="{p.fan_damping:.6g}" springlength="0">',
+                  f'      <joint joint="{s}_p{k + 1}_fan" coef="1"/>'
+                  f'<joint joint="{s}_wrist_flex" coef="{-fan_ratio(p, k):.6g}"/>',
+                  "    </fixed>"]
+    L.append("  </tendon>")
+    return "\n".join(L) + "\n"
+
+
+def _actuators_xml() -> str:
+    L = ["  <actuator>"]
+    for name in DOF_NAMES:
+        target = 'tendon="tail_spread"' if name == "tail_spread" else f'joint="{name}"'
+        L.append(f'    <general name="{name}" {target}/>')
+    L.append("  </actuator>")
+    return "\n".join(L) + "\n"
+
+
+def _sensors_xml() -> str:
+    return ("  <sensor>\n"
+            '    <framepos name="trunk_pos" objtype="body" objname="trunk"/>\n'
+            '    <framequat name="trunk_quat" objtype="body" objname="trunk"/>\n'
+            "  </sensor>\n")
+
+
+# -- the compiled model ----------------------------------------------------------------------
+
+
+def model_path() -> Path:
+    """The bundled ``bird_mjcf/dove.xml``."""
+    return asset_path("bird_mjcf", "dove.xml")
+
+
+@dataclass
+class Dove:
+    """A compiled dove: the MuJoCo model plus the indices flight code needs."""
+
+    model: mujoco.MjModel
+    params: DoveParams
+    trunk: int = 0
+    """Body id of the trunk."""
+    qadr: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    """qpos address of each of the 14 DOF (the tail spread: -1, it is a tendon)."""
+    dadr: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    """qvel address of each of the 14 DOF (-1 for the tail spread)."""
+
+    @classmethod
+    def load(cls, path: str | Path | None = None, params: DoveParams | None = None) -> Dove:
+        from flapsim.sim.loading import load_model
+
+        params = params or DoveParams.load()
+        model = load_model(path or model_path())
+        return cls.from_model(model, params)
+
+    @classmethod
+    def from_params(cls, params: DoveParams) -> Dove:
+        """Compile straight from parameters (no file): for studies that vary the model."""
+        from flapsim.sim.loading import load_model
+
+        return cls.from_model(load_model(build_xml(params), is_xml=True), params)
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel, params: DoveParams) -> Dove:
+        if model.nu != N_DOF:
+            raise ModelError(f"dove model has {model.nu} actuators, expected {N_DOF} ({DOF_NAMES})")
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(model.nu)]
+        if tuple(names) != DOF_NAMES:
+            raise ModelError(f"dove actuators are {names}, expected {list(DOF_NAMES)}")
+        qadr, dadr = [], []
+        for name in DOF_NAMES:
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+            qadr.append(model.jnt_qposadr[j] if j >= 0 else -1)
+            dadr.append(model.jnt_dofadr[j] if j >= 0 else -1)
+        trunk = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "trunk")
+        return cls(model, params, trunk, np.array(qadr), np.array(dadr))
+
+    @property
+    def mass(self) -> float:
+        return float(self.model.body_subtreemass[self.trunk])
+
+    @property
+    def weight(self) -> float:
+        return self.mass * float(-self.model.opt.gravity[2])
+
+    def feather_geoms(self) -> list[int]:
+        """Geom ids of every feather mesh."""
+        m = self.model
+        return [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH
+                and not mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g).endswith(UNDERSIDE)]
+
+    def feather_triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+        """Every feather triangle from the COMPILED meshes: (body ids (n,), corners in the body
+        frame (n, 3, 3), forward (n, 3), feather name per triangle)."""
+        m = self.model
+        bodies, tris, fwd, names = [], [], [], []
+        for g in self.feather_geoms():
+            mesh = m.geom_dataid[g]
+            v0, nv = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+            f0, nf = m.mesh_faceadr[mesh], m.mesh_facenum[mesh]
+            verts = m.mesh_vert[v0:v0 + nv].astype(float)
+            faces = m.mesh_face[f0:f0 + nf]
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, m.geom_quat[g])
+            rot = rot.reshape(3, 3)
+            vb = verts @ rot.T + m.geom_pos[g]
+            t = vb[faces]
+            n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            n /= np.linalg.norm(n, axis=1, keepdims=True)
+            # chordwise direction toward the leading edge: the body's +x in the feather plane
+            ex = np.array([1.0, 0.0, 0.0])
+            f = ex - n * (n @ ex)[:, None]
+            f /= np.linalg.norm(f, axis=1, keepdims=True)
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
+            bodies.append(np.full(nf, m.geom_bodyid[g]))
+            tris.append(t)
+            fwd.append(f)
+            names += [name] * nf
+        return np.concatenate(bodies), np.concatenate(tris), np.concatenate(fwd), names
+
+    def hash(self) -> str:
+        """Short hash of the model (provenance in result files)."""
+        h = hashlib.sha256()
+        for a in (self.model.body_mass, self.model.body_pos, self.model.mesh_vert,
+                  self.model.jnt_axis, self.model.actuator_biasprm):
+            h.update(np.ascontiguousarray(a).tobytes())
+        return h.hexdigest()[:12]

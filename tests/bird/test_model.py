@@ -1,0 +1,72 @@
+"""The dove MJCF: generated from its parameter file, mass, DOF, feathers, no self-contact."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from flapsim.bird.model import DOF_NAMES, Dove, DoveParams, build_xml, model_path
+from flapsim.errors import DataFileError
+
+
+@pytest.fixture(scope="module")
+def dove():
+    return Dove.load()
+
+
+def test_bundled_xml_is_generated_from_the_parameter_file():
+    # exact text equality: editing dove.toml without regenerating must fail here
+    assert model_path().read_text() == build_xml(DoveParams.load())
+
+
+def test_mass_and_dof(dove):
+    m = dove.model
+    # 0.170 kg is the parameter; the generator must distribute exactly that (float rounding
+    # of the written inertials is 6 significant digits -> 1e-5 relative)
+    assert dove.mass == pytest.approx(0.170, rel=1e-4)
+    assert m.nu == 14 and tuple(DOF_NAMES) == tuple(
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(m.nu))
+    assert m.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE  # unactuated free root
+    assert m.opt.timestep == pytest.approx(1 / 2400, rel=1e-9)
+
+
+def test_feather_counts_and_twist_joints(dove):
+    m = dove.model
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) for g in dove.feather_geoms()]
+    for side in "lr":
+        assert sum(n.startswith(f"{side}_p") for n in names) == 10
+        assert sum(n.startswith(f"{side}_s") for n in names) == 9
+    assert sum(n[2] == "r" for n in names) == 12  # l_r*, r_r*: the tail fan
+    for side in "lr":
+        for k in range(1, 11):
+            j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{side}_p{k}_twist")
+            assert m.jnt_limited[j] and m.jnt_range[j, 0] == 0.0 and m.jnt_range[j, 1] > 0.5
+            assert m.jnt_stiffness[j] == pytest.approx(0.6e-4)  # paper value
+            assert m.dof_damping[m.jnt_dofadr[j]] == pytest.approx(0.6e-5)
+
+
+def test_no_self_collision_in_any_pose(dove):
+    m = dove.model
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        d.qpos[7:] = rng.uniform(-1.5, 1.5, m.nq - 7)
+        mujoco.mj_forward(m, d)
+        assert d.ncon == 0  # folded wings overlap the trunk and tail: still no contact
+
+
+def test_wings_are_mirror_images(dove):
+    b, tris, fwd, names = dove.feather_triangles()
+    # same triangles, y negated (order within a feather may differ only by winding)
+    lt = np.array([t for n, t in zip(names, tris, strict=True) if n.startswith("l_")])
+    rt = np.array([t for n, t in zip(names, tris, strict=True) if n.startswith("r_")])
+    assert len(lt) == len(rt) == 132  # 28 left feathers: 10 P x 6, 9 S x 4, 3 T x 4, 6 R x 4
+    assert np.allclose(np.sort(lt[:, :, 1].ravel()), np.sort(-rt[:, :, 1].ravel()), atol=1e-9)
+    # every polygon's forward direction points toward the leading edge (+x side)
+    assert (fwd[:, 0] > 0.0).all()
+
+
+def test_bad_parameter_file_is_one_line(tmp_path):
+    bad = tmp_path / "dove.toml"
+    bad.write_text("[body]\ntotal_mass = 0.17\n")
+    with pytest.raises(DataFileError, match="lacks key"):
+        DoveParams.load(bad)
