@@ -124,8 +124,10 @@ def _time_offset(data: mujoco.MjData) -> int:
     try:
         if _TIME_OFFSET is None:
             data.time = 7.4211321e-5  # unlikely bit pattern
-            step = 4096
-            for start in range(0, 1 << 20, step):
+            # small blocks: the scan stops at most 512 bytes past `time`, well inside the
+            # struct (hundreds of pointer fields follow it), so it never reads unmapped memory
+            step = 64
+            for start in range(0, 1 << 17, step):
                 block = np.ctypeslib.as_array(
                     (ctypes.c_double * step).from_address(data._address + 8 * start)
                 )
