@@ -430,8 +430,12 @@ _HEADER = """<mujoco model="dove">
 """
 
 
-def build_xml(p: DoveParams) -> str:
-    """The complete dove MJCF as a string (meshes inline)."""
+def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None) -> str:
+    """The complete dove MJCF as a string (meshes inline).
+
+    ``fixed_trunk_pitch_deg``: weld the trunk to the world (no free joint) at this nose-up
+    pitch, for "wind tunnel" measurements.
+    """
     feathers = all_feathers(p)
     by_body: dict[str, list[fz.Feather]] = {}
     for fe in feathers:
@@ -451,7 +455,13 @@ def build_xml(p: DoveParams) -> str:
         jdamp=p.joint_damping, jarm=p.joint_armature, nkp=-p.pd_kp, nkv=-p.pd_kv,
         meshes="\n".join(meshes),
     )]
-    out.append(_trunk_xml(p, by_body))
+    trunk = _trunk_xml(p, by_body)
+    if fixed_trunk_pitch_deg is not None:
+        th = np.radians(fixed_trunk_pitch_deg)
+        trunk = trunk.replace('      <freejoint name="root"/>\n', "").replace(
+            '<body name="trunk" pos="0 0 10">',
+            f'<body name="trunk" pos="0 0 10" quat="{_v((np.cos(th / 2), 0, -np.sin(th / 2), 0))}">')
+    out.append(trunk)
     out.append("  </worldbody>\n")
     out.append(_tendons_xml(p))
     out.append(_actuators_xml())

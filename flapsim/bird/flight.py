@@ -1,0 +1,298 @@
+"""Flying the dove: feather aerodynamics, one wingbeat at a time, the reduced state.
+
+Every step MuJoCo runs the 14 PD servos (affine actuators, see :mod:`flapsim.sim.pd`)
+toward the wingbeat's targets and the surface-force engine adds drag and lift on every
+feather triangle (the flight paper's eq. 7-9) through the passive dispatcher. Nothing
+else acts on the bird but gravity.
+
+Per wingbeat, the per-step controls are precomputed (:func:`~flapsim.bird.wingbeat.
+control_table`) and the cycle is stepped either in a Python loop or, by default, inside
+``mujoco.rollout`` (C++), which with the compiled force provider runs no Python per step.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from flapsim.bird.model import DOF_NAMES, Dove, DoveParams, build_xml, fan_ratio
+from flapsim.bird.wingbeat import (
+    ReferenceWingbeat,
+    control_table,
+    p0,
+    reference_wingbeat,
+    with_tail_bias,
+)
+from flapsim.errors import InputError, SimulationError
+from flapsim.fluid.coefficients import get_table
+from flapsim.fluid.flow import FlowField, Uniform
+from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
+from flapsim.sim.callbacks import DISPATCHER
+from flapsim.sim.loading import load_model
+from flapsim.sim.pd import affine_gains
+
+log = logging.getLogger(__name__)
+
+AIR_DENSITY = 1.225  # kg/m^3, the flight paper (sec. 6)
+
+
+@dataclass(frozen=True)
+class FlightConfig:
+    """Settings of the base controller and its standard cruise start."""
+
+    table: str = "dickinson1999_lowdrag"
+    """Feather CL/CD table: Dickinson et al. 1999 quasi-steady flapping-wing fit with the
+    drag floor lowered to CD(0) = 0.05 (bird wings 0.03-0.13, Withers 1981)."""
+    tail_bias_deg: float = 17.0
+    """Tail bend added to the reference wingbeat (paper sec. 7: +17 deg, tail up)."""
+    speed: float = 7.0
+    """Initial forward speed, m/s (the paper's biased bird flew ~7 m/s)."""
+    pitch_deg: float = 0.0
+    """Initial trunk pitch, deg (nose up +)."""
+    climb_rate: float = 0.0
+    """Initial vertical velocity, m/s."""
+    height: float = 10.0
+    """Initial trunk height, m."""
+
+
+def feather_polygons(dove: Dove) -> PolygonSet:
+    """Every feather triangle as a force polygon (body frame; forward = toward the leading
+    edge; one coefficient table)."""
+    bodies, tris, fwd, names = dove.feather_triangles()
+    return PolygonSet.from_triangles(bodies, tris, forward=fwd, table=0, labels=names)
+
+
+@dataclass
+class CycleRecord:
+    """What one simulated wingbeat recorded per step."""
+
+    time: np.ndarray
+    """(n,) time at the end of each step, s."""
+    trunk_pos: np.ndarray
+    """(n, 3) trunk position, m."""
+    trunk_quat: np.ndarray
+    """(n, 4) trunk orientation."""
+    qpos14: np.ndarray
+    """(n, 14) actuated joint angles (tail spread: the tendon), rad."""
+
+
+@dataclass
+class DoveFlight:
+    """A dove in air with feather forces registered on its own ``MjData``."""
+
+    dove: Dove
+    ref: ReferenceWingbeat = field(default_factory=reference_wingbeat)
+    table: str = FlightConfig.table
+    wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    use_rollout: bool = True
+
+    def __post_init__(self) -> None:
+        m = self.dove.model
+        self.model = m
+        self.data = mujoco.MjData(m)
+        self.polygons = feather_polygons(self.dove)
+        self.flow = FlowField([Uniform(self.wind)])
+        self.aero = SurfaceForces(m, self.polygons, [get_table(self.table)],
+                                  FluidParams(AIR_DENSITY), self.flow, name="dove feathers")
+        self.registration = self.aero.register(self.data)
+        self.kp, self.kv = affine_gains(m)
+        self._free = m.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
+        self._tendon = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, "tail_spread")
+        self._tail = [m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]
+                      for n in ("tail_spread_l", "tail_spread_r")]
+        self._tail_v = [m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]
+                        for n in ("tail_spread_l", "tail_spread_r")]
+        self._fan = []
+        for s in "lr":
+            wrist = DOF_NAMES.index(f"{s}_wrist_flex")
+            for k in range(len(self.dove.params.primary_angle_deg)):
+                j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{s}_p{k + 1}_fan")
+                self._fan.append((m.jnt_qposadr[j], m.jnt_dofadr[j], wrist,
+                                  fan_ratio(self.dove.params, k)))
+        self._rollout_data = None
+
+    def close(self) -> None:
+        self.registration.remove()
+
+    # -- state -----------------------------------------------------------------------------
+    def set_pose(self, q: np.ndarray, qd: np.ndarray) -> None:
+        """Set the 14 DOF (and the feathers that follow them) to angles and rates."""
+        d, dv = self.data, self.dove
+        for i in range(len(DOF_NAMES)):
+            if dv.qadr[i] >= 0:
+                d.qpos[dv.qadr[i]] = q[i]
+                d.qvel[dv.dadr[i]] = qd[i]
+        ts = DOF_NAMES.index("tail_spread")
+        for a, b in zip(self._tail, self._tail_v, strict=True):
+            d.qpos[a], d.qvel[b] = q[ts], qd[ts]
+        for qa, da, wrist, c in self._fan:
+            d.qpos[qa], d.qvel[da] = c * q[wrist], c * qd[wrist]
+
+    def reset(self, cfg: FlightConfig | None = None, p: np.ndarray | None = None) -> None:
+        """The standard cruise start: level trunk at ``cfg.height`` flying +x at
+        ``cfg.speed``, joints on wingbeat ``p``'s targets at phase 0 (top of the stroke)."""
+        cfg = cfg or FlightConfig()
+        p = with_tail_bias(p0(), cfg.tail_bias_deg) if p is None else p
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        if self._free:
+            th = np.radians(cfg.pitch_deg)
+            d.qpos[0:3] = (0.0, 0.0, cfg.height)
+            d.qpos[3:7] = (np.cos(th / 2), 0.0, -np.sin(th / 2), 0.0)
+            d.qvel[0:3] = (cfg.speed, 0.0, cfg.climb_rate)
+        q, qd = self.ref.evaluate(p, np.zeros(1))
+        self.set_pose(q[0], qd[0])
+        mujoco.mj_forward(m, d)
+
+    def reduced_state(self) -> np.ndarray:
+        """S = (pitch, roll, body-frame linear velocity xyz, body-frame angular velocity xyz):
+        8 numbers invariant to position and heading (the flight paper's eq. 1)."""
+        return reduced_state(self.data)
+
+    # -- stepping --------------------------------------------------------------------------
+    def run_cycle(self, p: np.ndarray, record: bool = True) -> CycleRecord | None:
+        """Fly one wingbeat of parameters ``p`` from the current state."""
+        m, d = self.model, self.data
+        ctrl, q_t, _ = control_table(self.ref, p, m.opt.timestep, self.kp, self.kv)
+        n = len(ctrl)
+        if self.use_rollout:
+            pos, quat, q14, t = self._rollout(ctrl)
+        else:
+            pos, quat, q14, t = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 14)),
+                                 np.empty(n))
+            for k in range(n):
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_step(m, d)
+                if record:
+                    pos[k], quat[k], t[k] = d.qpos[0:3], d.qpos[3:7], d.time
+                    q14[k] = self._q14()
+        DISPATCHER.check(d)
+        if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
+            raise SimulationError(f"dove state is not finite at t={d.time:.4f} s (diverged)")
+        return CycleRecord(t, pos, quat, q14) if record else None
+
+    def _q14(self) -> np.ndarray:
+        dv = self.dove
+        out = np.where(dv.qadr >= 0, self.data.qpos[np.maximum(dv.qadr, 0)], 0.0)
+        out[DOF_NAMES.index("tail_spread")] = self.data.ten_length[self._tendon]
+        return out
+
+    def _rollout(self, ctrl: np.ndarray):
+        from mujoco import rollout
+
+        m, d = self.model, self.data
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        size = mujoco.mj_stateSize(m, spec)
+        state0 = np.empty(size)
+        mujoco.mj_getState(m, d, state0, spec)
+        states, _ = rollout.rollout(m, d, state0[None], ctrl[None], skip_checks=False)
+        states = states[0]
+        mujoco.mj_setState(m, d, states[-1], spec)
+        mujoco.mj_forward(m, d)
+        # FULLPHYSICS = time, qpos, qvel, act, ...
+        t = states[:, 0]
+        qpos = states[:, 1:1 + m.nq]
+        dv = self.dove
+        q14 = np.where(dv.qadr >= 0, qpos[:, np.maximum(dv.qadr, 0)], 0.0)
+        q14[:, DOF_NAMES.index("tail_spread")] = 0.5 * (qpos[:, self._tail[0]]
+                                                       + qpos[:, self._tail[1]])
+        if self._free:
+            return qpos[:, 0:3].copy(), qpos[:, 3:7].copy(), q14, t
+        return np.zeros((len(t), 3)), np.tile([1.0, 0, 0, 0], (len(t), 1)), q14, t
+
+    def com_velocity(self) -> np.ndarray:
+        """Velocity of the whole bird's centre of mass, m/s (world frame)."""
+        mujoco.mj_subtreeVel(self.model, self.data)
+        return self.data.subtree_linvel[self.dove.trunk].copy()
+
+
+def reduced_state(d: mujoco.MjData) -> np.ndarray:
+    """The 8-number state of a free-flying trunk (body 1, free joint at qpos[0:7])."""
+    q = d.qpos[3:7]
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    R = R.reshape(3, 3)
+    pitch, roll = pitch_roll(R)
+    v_body = R.T @ d.qvel[0:3]
+    w_body = d.qvel[3:6]  # MuJoCo's free-joint angular velocity is in the body frame
+    return np.array([pitch, roll, *v_body, *w_body])
+
+
+def pitch_roll(R: np.ndarray) -> tuple[float, float]:
+    """Nose-up pitch and right-wing-down roll of a body frame (x forward, y left, z up)."""
+    fwd, left = R[:, 0], R[:, 1]
+    pitch = float(np.arcsin(np.clip(fwd[2], -1, 1)))
+    roll = float(np.arcsin(np.clip(-left[2], -1, 1)))
+    return pitch, roll
+
+
+# -- wind tunnel -------------------------------------------------------------------------------
+
+
+@dataclass
+class TunnelResult:
+    """Cycle-averaged aerodynamic force on a welded dove in a headwind."""
+
+    speed: float
+    pitch_deg: float
+    lift_per_weight: float
+    """Mean vertical force / body weight."""
+    thrust_per_weight: float
+    """Mean forward (+x) force / body weight: > 0 means thrust exceeds drag."""
+    pitch_moment: float
+    """Mean nose-up moment about the trunk centre, N m."""
+    upstroke_area_ratio: float
+    """Mean projected (xy) feather area in the upstroke / in the downstroke."""
+
+
+def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: float = 0.0,
+                cycles: int = 3, table: str = FlightConfig.table,
+                ref: ReferenceWingbeat | None = None) -> TunnelResult:
+    """Weld the trunk, blow ``speed`` m/s from ahead, flap wingbeat ``p`` and average the
+    aerodynamic force over the last cycle (the first ones settle the feathers)."""
+    if cycles < 2:
+        raise InputError("wind_tunnel needs >= 2 cycles (the first settles the transients)")
+    model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg), is_xml=True)
+    dove = Dove.from_model(model, params)
+    fl = DoveFlight(dove, ref or reference_wingbeat(), table, (-speed, 0.0, 0.0),
+                    use_rollout=False)
+    try:
+        fl.reset(FlightConfig(speed=0.0), p)
+        m, d = fl.model, fl.data
+        weight = float(params.total_mass * 9.81)
+        ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
+        for _ in range(cycles - 1):
+            for k in range(len(ctrl)):
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_step(m, d)
+        F = np.zeros(3)
+        M = 0.0
+        trunk = d.xpos[dove.trunk].copy()
+        down_area, up_area = [], []
+        nz = np.array(fl.polygons.normal)
+        areas = fl.polygons.area
+        ds = fl.ref.period * split_w(p) * 0.55
+        for k in range(len(ctrl)):
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            rep = fl.aero.evaluate(d)
+            f = rep.force
+            F += f.sum(axis=0)
+            r = rep.points - trunk
+            M += float(np.sum(r[:, 0] * f[:, 2] - r[:, 2] * f[:, 0]))
+            R = d.xmat[fl.polygons.body].reshape(-1, 3, 3)
+            proj = float(np.sum(areas * np.abs(np.einsum("nij,nj->ni", R, nz)[:, 2])))
+            (down_area if k * m.opt.timestep < ds else up_area).append(proj)
+        DISPATCHER.check(d)
+        n = len(ctrl)
+        return TunnelResult(speed, pitch_deg, F[2] / n / weight, F[0] / n / weight, M / n,
+                            float(np.mean(up_area) / np.mean(down_area)))
+    finally:
+        fl.close()
+
+
+def split_w(p: np.ndarray) -> float:
+    return float(np.asarray(p)[-1])
