@@ -12,6 +12,8 @@ HELP = "run a speed benchmark (forces, ...) and report ratios measured in the sa
 # name -> "module:function"; each function takes the parsed args and returns a dict.
 BENCHES: dict[str, str] = {
     "forces": "flapsim.fluid.bench:run",
+    "modal": "flapsim.modal.bench:run_modal",
+    "creatures": "flapsim.modal.bench:run_creatures",
 }
 
 

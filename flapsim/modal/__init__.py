@@ -1,0 +1,38 @@
+"""System 3: modal locomotion (Kry, Reveret, Faure, Cani 2009).
+
+* :mod:`flapsim.modal.analysis`: vibration modes of any MuJoCo model about its rest pose,
+  with closed loops and extra constraints (:func:`analyze`, :class:`ModalAnalysis`).
+* :mod:`flapsim.modal.dynamic`: the equilibrium-point controller that drives selected
+  modes in a dynamic simulation (:class:`ModalController`).
+* :mod:`flapsim.modal.creatures`: the loop and linear creatures and their locomotion runs.
+"""
+
+from flapsim.modal.analysis import (
+    ExtraConstraint,
+    ModalAnalysis,
+    analyze,
+    fix_body_orientation,
+    fix_joint,
+    fix_root,
+    ground_contact,
+    integrate_displacement,
+    parse_constraint,
+    pin_site,
+    rest_pose,
+    tangent_difference,
+)
+
+__all__ = [
+    "ExtraConstraint",
+    "ModalAnalysis",
+    "analyze",
+    "fix_body_orientation",
+    "fix_joint",
+    "fix_root",
+    "ground_contact",
+    "integrate_displacement",
+    "parse_constraint",
+    "pin_site",
+    "rest_pose",
+    "tangent_difference",
+]

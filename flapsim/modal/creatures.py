@@ -1,0 +1,222 @@
+"""The simple creatures of Kry et al. 2009 (Fig. 2, Fig. 3) and their locomotion runs.
+
+Both are 16 identical plates (0.06 x 0.12 x 0.01 m) joined by hinges of uniform
+stiffness 1 N m/rad (the paper's Fig. 3 table) and damping 0.002 N m s/rad, on a ground
+plane with friction 1.0 (see ``scripts/modal_make_creatures.py`` for the design):
+
+* ``loop``: a ring of 16 plates standing upright (0.0425 kg each, 0.68 kg in all),
+  closed by a ``connect`` equality whose joint spring is a fixed tendon; 21 velocity
+  dofs, 19 after the closure (the paper's count). Lowest modes: 5.25, 5.25 Hz (the two
+  ovalisation modes, a degenerate pair), then 14.75, 14.75, 28.0, 28.0 Hz; the paper
+  reports 5.26, 5.26, 15.7, 14.7, 27.5, 27.5 Hz. Body length = perimeter / pi (the
+  diameter of the circle with the ring's perimeter) = 0.306 m.
+* ``linear``: a straight chain of 16 plates lying flat (0.0053 kg each, 0.085 kg in
+  all), bending in the vertical plane; 21 dofs. Lowest modes 3.18, 8.77 Hz (the paper:
+  3.18, 5.68 Hz; its chain is not described, ours is a uniform planar one, whose second
+  mode sits 2.76x above the first). Body length = its length, 0.96 m.
+
+The controller is the paper's: modes 6 and 7 (the two lowest vibrations) as a PD
+equilibrium point, 90 degrees apart, at 5.25 Hz (loop) or 5 Hz (linear).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+
+import mujoco
+import numpy as np
+
+from flapsim.assets import asset_path
+from flapsim.errors import InputError, SimulationError
+from flapsim.modal.analysis import ModalAnalysis, analyze
+from flapsim.modal.dynamic import ModalController, two_mode_drives
+from flapsim.sim.loading import load_model
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CreatureGait:
+    """Parameters of the two-mode controller for one creature."""
+
+    amplitude_rad: float
+    """alpha: set-point amplitude of the most-moving joint in each mode, rad (ours;
+    the paper's alpha = 1 is in its own unstated normalisation)."""
+    freq_hz: float | None
+    """Drive frequency for both modes, Hz; None = the lowest vibration mode's own.
+    Paper Fig. 3: 5.25 Hz (loop), 5 Hz (linear)."""
+    phase_deg: float = 90.0
+    """Phase of the second mode relative to the first, degrees (paper: 90)."""
+    settle_s: float = 0.5
+    """Undriven time to let the creature settle on the ground before measuring, s."""
+    ramp_s: float = 0.5
+    """Cosine ramp of the drive amplitude at the start, s."""
+
+
+@dataclass(frozen=True)
+class CreatureSpec:
+    """A bundled creature model and its default gait."""
+
+    filename: str
+    """MJCF file in the ``creatures/`` asset folder."""
+    closed_loop: bool
+    """True when the body length is perimeter / pi (a ring), else the chain's length."""
+    gait: CreatureGait
+    """Default two-mode gait."""
+
+
+CREATURES: dict[str, CreatureSpec] = {
+    "loop": CreatureSpec("loop.xml", True, CreatureGait(amplitude_rad=0.3, freq_hz=None)),
+    "linear": CreatureSpec("linear.xml", False, CreatureGait(amplitude_rad=0.3, freq_hz=5.0)),
+}
+
+
+def creature_spec(name: str) -> CreatureSpec:
+    if name not in CREATURES:
+        raise InputError(f"unknown creature {name!r}; choose one of {', '.join(CREATURES)}")
+    return CREATURES[name]
+
+
+def load_creature(name: str) -> mujoco.MjModel:
+    """Compile a bundled creature model."""
+    return load_model(asset_path("creatures", creature_spec(name).filename))
+
+
+def body_length(model: mujoco.MjModel, closed_loop: bool) -> float:
+    """Chain length: number of links times the link length (the distance between
+    consecutive joints, from the child bodies' offsets); divided by pi for a ring
+    (perimeter / pi, the diameter of a circle with the ring's perimeter)."""
+    n_links = model.nbody - 1
+    offsets = [float(np.linalg.norm(model.body_pos[b])) for b in range(2, model.nbody)]
+    if n_links < 2 or not offsets:
+        raise InputError("a creature needs at least two links")
+    total = n_links * float(np.median(offsets))
+    return total / math.pi if closed_loop else total
+
+
+def analyze_creature(model: mujoco.MjModel) -> ModalAnalysis:
+    """Modes of a creature about its rest pose (the closure equality included)."""
+    return analyze(model)
+
+
+def run_creature(
+    name: str,
+    seconds: float,
+    gait: CreatureGait | None = None,
+    *,
+    progress: bool = False,
+    record_every: int = 0,
+    model: mujoco.MjModel | None = None,
+) -> dict:
+    """Simulate a creature driven by its two lowest modes and measure how far it goes.
+
+    Returns distance travelled along x (signed, m and body lengths), the horizontal
+    distance, mean speed, the modes used and the wall-clock real-time factor.
+    ``record_every`` > 0 also returns the qpos trajectory every that many steps;
+    ``model`` replaces the bundled model (a variant of the same creature).
+    """
+    spec = creature_spec(name)
+    gait = gait or spec.gait
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise InputError(f"--seconds must be a positive number, got {seconds}")
+    for field_name in ("amplitude_rad", "phase_deg", "settle_s", "ramp_s"):
+        if not math.isfinite(getattr(gait, field_name)):
+            raise InputError(f"{field_name} must be finite")
+    if gait.settle_s < 0:
+        raise InputError("settle time must be non-negative")
+
+    model = model if model is not None else load_creature(name)
+    analysis = analyze_creature(model)
+    drives = two_mode_drives(
+        analysis, gait.amplitude_rad, phase_rad=math.radians(gait.phase_deg), freq_hz=gait.freq_hz
+    )
+    data = mujoco.MjData(model)
+    data.qpos[:] = analysis.rest_qpos
+    mujoco.mj_forward(model, data)
+    dt = model.opt.timestep
+    root = 1  # the root plate; subtree_com of it is the creature's centre of mass
+
+    n_settle = int(round(gait.settle_s / dt))
+    for _ in range(n_settle):
+        mujoco.mj_step(model, data)
+    mujoco.mj_forward(model, data)
+    start_com = data.subtree_com[root].copy()
+    controller = ModalController(model, analysis, drives, ramp_s=gait.ramp_s, start_time=data.time)
+
+    n_steps = int(round(seconds / dt))
+    frames: list[np.ndarray] = []
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_steps, desc=f"{name} creature", unit="step", leave=False)
+    t0 = time.perf_counter()
+    chunk = max(n_steps // 100, 1)
+    for k in range(n_steps):
+        controller.apply(data)
+        mujoco.mj_step(model, data)
+        if record_every and k % record_every == 0:
+            frames.append(data.qpos.copy())
+        if bar is not None and (k + 1) % chunk == 0:
+            bar.update(chunk)
+        if k % 500 == 0:
+            _check_stable(model, data, name)
+    wall = time.perf_counter() - t0
+    if bar is not None:
+        bar.close()
+    _check_stable(model, data, name)
+    mujoco.mj_forward(model, data)
+    end_com = data.subtree_com[root].copy()
+    length = body_length(model, spec.closed_loop)
+    dx = float(end_com[0] - start_com[0])
+    horiz = float(np.hypot(*(end_com[:2] - start_com[:2])))
+    # Ring plane tilt: the hinge axis (body y) should stay horizontal.
+    axis_y = data.xmat[root].reshape(3, 3)[:, 1]
+    tilt_deg = math.degrees(math.asin(min(abs(float(axis_y[2])), 1.0)))
+    result = {
+        "creature": name,
+        "model_file": spec.filename,
+        "nv": model.nv,
+        "dofs_after_constraints": analysis.n_modes,
+        "modes_driven": [d.mode for d in drives],
+        "mode_freqs_hz": [float(analysis.freqs_hz[d.mode]) for d in drives],
+        "drive_freq_hz": float(drives[0].freq_hz),
+        "amplitude_rad": gait.amplitude_rad,
+        "phase_deg": gait.phase_deg,
+        "simulated_s": n_steps * dt,
+        "settle_s": n_settle * dt,
+        "body_length_m": length,
+        "body_length_definition": "perimeter / pi" if spec.closed_loop else "chain length",
+        "distance_x_m": dx,
+        "distance_x_body_lengths": dx / length,
+        "distance_horizontal_m": horiz,
+        "distance_horizontal_body_lengths": horiz / length,
+        "lateral_drift_m": float(end_com[1] - start_com[1]),
+        "mean_speed_m_s": dx / (n_steps * dt),
+        "mean_speed_body_lengths_s": dx / length / (n_steps * dt),
+        "final_tilt_deg": tilt_deg,
+        "wall_s": wall,
+        "realtime_factor": n_steps * dt / wall if wall > 0 else float("inf"),
+    }
+    if record_every:
+        result["_frames"] = np.array(frames)
+    return result
+
+
+def _check_stable(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> None:
+    # MuJoCo resets the state (and only warns) when accelerations blow up, so a diverged
+    # run would otherwise report a bogus distance.
+    bad = data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+    if bad or not np.all(np.isfinite(data.qpos)):
+        raise SimulationError(
+            f"the {name} creature simulation diverged (t={data.time:.3f} s); "
+            "lower the amplitude or the drive frequency"
+        )
+
+
+def with_gait(name: str, **changes: object) -> CreatureGait:
+    """The creature's default gait with some fields replaced (``None`` values ignored)."""
+    return replace(creature_spec(name).gait, **{k: v for k, v in changes.items() if v is not None})
