@@ -77,6 +77,8 @@ class CycleRecord:
     """(n, 4) trunk orientation."""
     qpos14: np.ndarray
     """(n, 14) actuated joint angles (tail spread: the tendon), rad."""
+    qpos: np.ndarray | None = None
+    """(n, nq) full positions (for videos), when recorded."""
 
 
 @dataclass
@@ -159,20 +161,23 @@ class DoveFlight:
         ctrl, q_t, _ = control_table(self.ref, p, m.opt.timestep, self.kp, self.kv)
         n = len(ctrl)
         if self.use_rollout:
-            pos, quat, q14, t = self._rollout(ctrl)
+            pos, quat, q14, t, qpos = self._rollout(ctrl)
+            return CycleRecord(t, pos, quat, q14, qpos) if record else None
         else:
             pos, quat, q14, t = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 14)),
                                  np.empty(n))
+            qpos = np.empty((n, m.nq))
             for k in range(n):
                 d.ctrl[:] = ctrl[k]
                 mujoco.mj_step(m, d)
                 if record:
                     pos[k], quat[k], t[k] = d.qpos[0:3], d.qpos[3:7], d.time
                     q14[k] = self._q14()
+                    qpos[k] = d.qpos
         DISPATCHER.check(d)
         if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
             raise SimulationError(f"dove state is not finite at t={d.time:.4f} s (diverged)")
-        return CycleRecord(t, pos, quat, q14) if record else None
+        return CycleRecord(t, pos, quat, q14, qpos) if record else None
 
     def _q14(self) -> np.ndarray:
         dv = self.dove
@@ -199,9 +204,12 @@ class DoveFlight:
         q14 = np.where(dv.qadr >= 0, qpos[:, np.maximum(dv.qadr, 0)], 0.0)
         q14[:, DOF_NAMES.index("tail_spread")] = 0.5 * (qpos[:, self._tail[0]]
                                                        + qpos[:, self._tail[1]])
+        if not (np.all(np.isfinite(states[-1]))):
+            raise SimulationError(f"dove state is not finite at t={d.time:.4f} s (diverged)")
+        DISPATCHER.check(d)
         if self._free:
-            return qpos[:, 0:3].copy(), qpos[:, 3:7].copy(), q14, t
-        return np.zeros((len(t), 3)), np.tile([1.0, 0, 0, 0], (len(t), 1)), q14, t
+            return qpos[:, 0:3].copy(), qpos[:, 3:7].copy(), q14, t, qpos
+        return np.zeros((len(t), 3)), np.tile([1.0, 0, 0, 0], (len(t), 1)), q14, t, qpos
 
     def com_velocity(self) -> np.ndarray:
         """Velocity of the whole bird's centre of mass, m/s (world frame)."""
@@ -296,3 +304,127 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
 
 def split_w(p: np.ndarray) -> float:
     return float(np.asarray(p)[-1])
+
+
+# -- a straight flight and its metrics ----------------------------------------------------------
+
+
+@dataclass
+class Flight:
+    """A simulated flight of repeated wingbeats and its per-step record."""
+
+    time: np.ndarray
+    """(n,) s."""
+    trunk_pos: np.ndarray
+    """(n, 3) m."""
+    trunk_quat: np.ndarray
+    """(n, 4)."""
+    qpos14: np.ndarray
+    """(n, 14) rad."""
+    qpos: np.ndarray
+    """(n, nq) full positions."""
+    states: np.ndarray
+    """(wingbeats + 1, 8) reduced state at the start of each wingbeat and at the end."""
+    com_vel_start: np.ndarray
+    """Whole-bird centre-of-mass velocity at the start, m/s."""
+    com_vel_end: np.ndarray
+    """... and at the end."""
+    start_pos: np.ndarray
+    """Trunk position at the start, m."""
+    start_vel: np.ndarray
+    """Trunk velocity at the start (defines the initial straight line), m/s."""
+    wall_time: float
+    """Wall-clock seconds spent stepping (model set-up excluded)."""
+    mass: float
+    """Bird mass, kg."""
+
+
+def fly(dove: Dove, wingbeats: int, cfg: FlightConfig | None = None, p: np.ndarray | None = None,
+        use_rollout: bool = True, ref: ReferenceWingbeat | None = None,
+        progress: bool = False) -> Flight:
+    """The base controller: repeat wingbeat ``p`` (default: P0 with the tail bias) from the
+    standard cruise state for ``wingbeats`` cycles."""
+    import time as _time
+
+    if wingbeats < 1:
+        raise InputError(f"--wingbeats must be >= 1, got {wingbeats}")
+    cfg = cfg or FlightConfig()
+    p = with_tail_bias(p0(), cfg.tail_bias_deg) if p is None else p
+    fl = DoveFlight(dove, ref or reference_wingbeat(), cfg.table, use_rollout=use_rollout)
+    try:
+        fl.reset(cfg, p)
+        d = fl.data
+        start_pos, start_vel = d.qpos[0:3].copy(), d.qvel[0:3].copy()
+        v0 = fl.com_velocity()
+        states = [fl.reduced_state()]
+        recs = []
+        it = range(wingbeats)
+        if progress:
+            from tqdm import tqdm
+
+            it = tqdm(it, desc="wingbeats", unit="wb")
+        t0 = _time.perf_counter()
+        for _ in it:
+            recs.append(fl.run_cycle(p))
+            states.append(fl.reduced_state())
+        wall = _time.perf_counter() - t0
+        v1 = fl.com_velocity()
+    finally:
+        fl.close()
+    cat = lambda name: np.concatenate([getattr(r, name) for r in recs])  # noqa: E731
+    return Flight(cat("time"), cat("trunk_pos"), cat("trunk_quat"), cat("qpos14"), cat("qpos"),
+                  np.array(states), v0, v1, start_pos, start_vel, wall, dove.mass)
+
+
+def flight_metrics(f: Flight, gravity: float = 9.81) -> dict:
+    """The numbers ``flapsim fly`` reports (SI; angles in degrees with ``_deg``).
+
+    * deviations from the initial straight line (through the start position along the
+      start velocity): lateral = horizontal distance across it, vertical = height
+      above/below it;
+    * wingbeat frequency from the simulated shoulder elevation (tops found as in capture
+      data), not from the commanded wingbeat;
+    * mean vertical aerodynamic force / weight from the whole bird's momentum: gravity
+      and feather forces are the only external forces, so their mean over the flight is
+      ``m (v_end - v_start) / T`` and the aerodynamic part is that plus ``m g``.
+    """
+    from flapsim.bird.capture import segment_cycles
+
+    T = float(f.time[-1] - (f.time[0] - (f.time[1] - f.time[0])))
+    rel = f.trunk_pos - f.start_pos
+    u = f.start_vel / max(np.linalg.norm(f.start_vel), 1e-12)
+    along = rel @ u
+    off = rel - np.outer(along, u)
+    zhat = np.array([0.0, 0.0, 1.0])
+    # vertical direction orthogonal to the line (the line is horizontal in the standard start)
+    nvert = zhat - (zhat @ u) * u
+    nvert /= np.linalg.norm(nvert)
+    vertical = off @ nvert
+    lateral = np.linalg.norm(off - np.outer(vertical, nvert), axis=1)
+    steps = np.linalg.norm(np.diff(np.vstack([f.start_pos, f.trunk_pos]), axis=0), axis=1)
+    pr = np.array([_pitch_roll_quat(q) for q in f.trunk_quat])
+    rate = 1.0 / float(np.median(np.diff(f.time)))
+    s, e = segment_cycles(f.qpos14, rate)
+    freq = float(1.0 / np.mean((e - s) / rate)) if len(s) else float("nan")
+    lift = 1.0 + float(f.com_vel_end[2] - f.com_vel_start[2]) / (gravity * T)
+    thrust = float(f.com_vel_end @ u - f.com_vel_start @ u) / (gravity * T)
+    return {
+        "simulated_s": T,
+        "mean_speed": float(steps.sum() / T),
+        "wingbeat_hz": freq,
+        "max_lateral_deviation": float(np.abs(lateral).max()),
+        "max_vertical_deviation": float(np.abs(vertical).max()),
+        "final_vertical_offset": float(vertical[-1]),
+        "pitch_range_deg": [float(np.degrees(pr[:, 0].min())), float(np.degrees(pr[:, 0].max()))],
+        "roll_range_deg": [float(np.degrees(pr[:, 1].min())), float(np.degrees(pr[:, 1].max()))],
+        "mean_lift_per_weight": lift,
+        "mean_net_forward_force_per_weight": thrust,
+        "finite": bool(np.all(np.isfinite(f.qpos))),
+        "real_time_factor": T / f.wall_time if f.wall_time > 0 else float("nan"),
+    }
+
+
+def _pitch_roll_quat(q: np.ndarray) -> tuple[float, float]:
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    return pitch_roll(R.reshape(3, 3))
