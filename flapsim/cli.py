@@ -20,7 +20,7 @@ from flapsim import __version__
 from flapsim.errors import FlapsimError
 
 # Order is the order ``flapsim --help`` lists them in.
-COMMANDS: tuple[str, ...] = ("demo", "bench", "swim", "fly", "modes", "creature")
+COMMANDS: tuple[str, ...] = ("demo", "bench", "fly", "modes", "creature")
 
 
 class _Parser(argparse.ArgumentParser):
