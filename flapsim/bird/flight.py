@@ -175,9 +175,18 @@ class DoveFlight:
                     q14[k] = self._q14()
                     qpos[k] = d.qpos
         DISPATCHER.check(d)
+        self._check_warnings()
         if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
             raise SimulationError(f"dove state is not finite at t={d.time:.4f} s (diverged)")
         return CycleRecord(t, pos, quat, q14, qpos) if record else None
+
+    def _check_warnings(self) -> None:
+        """MuJoCo resets a diverged simulation and only warns: turn that into an error."""
+        w = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        if w.number > 0:
+            raise SimulationError("dove simulation diverged (bad accelerations before t="
+                                  f"{self.data.time:.4f} s; MuJoCo reset the state): lower the "
+                                  "timestep or check the wingbeat")
 
     def _q14(self) -> np.ndarray:
         dv = self.dove
@@ -204,6 +213,7 @@ class DoveFlight:
         q14 = np.where(dv.qadr >= 0, qpos[:, np.maximum(dv.qadr, 0)], 0.0)
         q14[:, DOF_NAMES.index("tail_spread")] = 0.5 * (qpos[:, self._tail[0]]
                                                        + qpos[:, self._tail[1]])
+        self._check_warnings()
         if not (np.all(np.isfinite(states[-1]))):
             raise SimulationError(f"dove state is not finite at t={d.time:.4f} s (diverged)")
         DISPATCHER.check(d)

@@ -133,3 +133,14 @@ def test_fly_command_rejects_bad_input(capsys):
     assert main(["fly", "--wingbeats", "0"]) == 2
     err = capsys.readouterr().err.strip()
     assert "--wingbeats" in err and "\n" not in err
+
+
+def test_divergence_is_an_error_not_a_silent_reset():
+    import dataclasses
+
+    from flapsim.errors import SimulationError
+
+    # 600 Hz is too coarse for the 0.14 g primaries (timestep study: diverges at <= 800 Hz)
+    dove = Dove.from_params(dataclasses.replace(DoveParams.load(), timestep=1 / 600))
+    with pytest.raises(SimulationError, match="diverged"):
+        fly(dove, 1)
