@@ -32,3 +32,15 @@ def test_save_npz_refuses_pickles(tmp_path):
     with pytest.raises(InputError, match="pickles"):
         save_npz(tmp_path / "b.npz", x=np.array([{}], dtype=object))
     assert not (tmp_path / "b.npz").exists()
+
+
+def test_outputs_get_ordinary_permissions(tmp_path):
+    import os
+
+    umask = os.umask(0o022)
+    try:
+        write_json(tmp_path / "p.json", {})
+    finally:
+        os.umask(umask)
+    # mkstemp's 0600 would hide results from other users; a plain open() gives 0644 here
+    assert (tmp_path / "p.json").stat().st_mode & 0o777 == 0o644
