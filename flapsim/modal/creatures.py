@@ -70,7 +70,7 @@ class CreatureSpec:
 
 CREATURES: dict[str, CreatureSpec] = {
     "loop": CreatureSpec("loop.xml", True, CreatureGait(amplitude_rad=0.3, freq_hz=None)),
-    "linear": CreatureSpec("linear.xml", False, CreatureGait(amplitude_rad=0.3, freq_hz=5.0)),
+    "linear": CreatureSpec("linear.xml", False, CreatureGait(amplitude_rad=0.15, freq_hz=5.0)),
 }
 
 
