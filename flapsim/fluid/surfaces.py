@@ -118,19 +118,6 @@ class PolygonSet:
         return int(self.body.shape[0])
 
     @classmethod
-    def from_triangles(
-        cls,
-        body: int | np.ndarray,
-        vertices: np.ndarray,
-        forward: np.ndarray | Sequence[float] | None = None,
-        table: int | np.ndarray = 0,
-        labels: Sequence[str] = (),
-    ) -> PolygonSet:
-        """Triangles (n, 3, 3) in the body frame; normal by the right-hand rule of the
-        vertex order. ``forward`` (3,) or (n, 3) is projected into each plane."""
-        return cls.from_polygons(body, vertices, forward, table, labels)
-
-    @classmethod
     def from_polygons(
         cls,
         body: int | np.ndarray,
@@ -139,8 +126,9 @@ class PolygonSet:
         table: int | np.ndarray = 0,
         labels: Sequence[str] = (),
     ) -> PolygonSet:
-        """Planar convex polygons (n, k, 3), k >= 3, vertices in order (normal by the
-        right-hand rule)."""
+        """Planar convex polygons (n, k, 3), k >= 3 (triangles: k = 3), in the body frame,
+        vertices in order (normal by the right-hand rule). ``forward`` (3,) or (n, 3) is
+        projected into each polygon's plane."""
         v = np.asarray(vertices, dtype=float)
         if v.ndim != 3 or v.shape[1] < 3 or v.shape[2] != 3:
             raise InputError(f"vertices must have shape (n, k>=3, 3), got {v.shape}")
@@ -168,6 +156,9 @@ class PolygonSet:
             fwd = f / norm[:, None]
         bodies = np.broadcast_to(np.asarray(body, dtype=np.int64), (n,))
         return cls(bodies, centroid, normal, area, fwd, table, extent, tuple(labels))
+
+    #: triangles (n, 3, 3) are polygons with three vertices
+    from_triangles = from_polygons
 
     @classmethod
     def from_box(
