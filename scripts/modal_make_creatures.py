@@ -1,26 +1,34 @@
 """Generate creatures/loop.xml and creatures/linear.xml (the simple creatures of Kry et al.
-2009, Fig. 2 and Fig. 3): 16 identical plates joined by hinges of stiffness 1 N m/rad.
+2009, Fig. 2 and Fig. 3): 16 identical links joined by hinges of stiffness 1 N m/rad.
 
 Run from the repository root:  PYTHONPATH=. python scripts/modal_make_creatures.py
 (``--print`` shows the XML instead of writing it). The XML files are committed; this
 script documents how they were made and lets a user remake them with other sizes.
 
 Design (all numbers SI):
-* 16 links, link length 0.06 m, plate width 0.12 m, thickness 0.01 m, mass 0.045 kg
-  (the loop) / 0.006 kg (the linear creature). The masses put each creature's two lowest
-  vibration modes near the paper's ~5 Hz with the paper's uniform 1 N m/rad stiffness
-  (see the module docstring of flapsim.modal.creatures for the resulting frequencies).
-* Loop: a regular 16-gon standing upright in the x-z plane (hinge axes along y), a free
-  root (the bottom plate) plus 15 hinges = 21 velocity dofs; the 16th joint is a
-  ``connect`` equality (its in-plane rows have rank 2, so 19 dofs remain, the paper's
-  count) and its spring is a fixed tendon over the 15 hinges: for a planar loop the
-  closing joint's angle is minus the sum of the others, so a tendon of stiffness k on
-  that sum is exactly the 16th joint's spring.
-* Linear: a straight chain lying on the ground, free root + 15 hinges = 21 dofs (the
-  paper's count), hinge axes along y so it bends in the vertical plane (a crawler).
+* 16 links, link length 0.06 m, uniform hinge stiffness 1 N m/rad (paper, Fig. 3).
+* Loop: plates 0.06 x 0.12 x 0.01 m of 0.0425 kg, a regular 16-gon standing upright in the
+  x-z plane (hinge axes along y), a free root (the bottom plate) plus 15 hinges = 21
+  velocity dofs; the 16th joint is a ``connect`` equality (its in-plane rows have rank
+  2, so 19 dofs remain, the paper's count) and its spring is a fixed tendon over the 15
+  hinges: for a planar loop the closing joint's angle is minus the sum of the others, so
+  a tendon of stiffness k on that sum is exactly the 16th joint's spring. The mass puts
+  the two lowest modes at the paper's ~5.25 Hz.
+* Linear: capsules of radius 0.02 m and 0.0104 kg (a foam-like 95 kg/m^3; the mass puts
+  the two lowest modes at the paper's lower frequency, 3.18 Hz), a straight chain lying
+  on the ground along y, free root at the middle link (link 8) + 15 hinges = 21 dofs. The
+  hinge axes alternate (odd joints: body y, horizontal across the chain at rest, so they
+  bend it out of the ground plane; even joints: body z, vertical, bending it in the ground
+  plane), so the two lowest modes bend the chain in two perpendicular planes and the
+  paper's 90-degree mix turns the bend round the chain: it rolls sideways. A planar chain
+  (all axes parallel) was tried first: at 5 Hz its 1 m body must lift itself by several
+  cm (g / omega^2 = 1 cm), so it hops, and its distance and even its direction changed
+  with small changes of amplitude, damping or link size. Round links let the rolling
+  chain keep contact; the contact is stiff (1 ms time constant, see LINEAR_SOLREF) and
+  the step 0.25 ms.
 * Joint damping 0.002 N m s/rad, i.e. Rayleigh damping (C = K * 0.002 s): damping ratio
-  ~3% at 5 Hz, so driving at the natural frequency is resonant but bounded.
-* Ground: a plane with friction 1.0 (rubber-like); plates collide only with the ground.
+  ~2-3 % at 3-5 Hz, so driving near the natural frequency is resonant but bounded.
+* Ground: a plane with friction 1.0 (rubber-like); links collide only with the ground.
 """
 
 from __future__ import annotations
@@ -37,14 +45,31 @@ STIFFNESS = 1.0
 DAMPING = 0.002
 FRICTION = 1.0
 LOOP_LINK_MASS = 0.0425
-LINEAR_LINK_MASS = 0.0053
+# Linear creature (a rolling chain): capsule links, hinge axes alternating between the
+# two bending planes, root at the middle link.
+LINEAR_RADIUS = 0.02
+LINEAR_LINK_MASS = 0.0104
+LINEAR_ROOT = N_LINKS // 2
+# Rolling contact needs a stiff contact: MuJoCo's soft contact leaves out the J'(q) qdot
+# term, which for links spinning at ~30 rad/s is ~2 g at the contact and depends on the
+# choice of generalized coordinates; with a 4 ms contact time constant the heading then
+# depended on which link was the root (an end root turned 180 deg in 10 s). With 1 ms
+# (4 steps of 0.25 ms) the root choice changes the distance by < 5%.
+LINEAR_SOLREF = "0.001 1"
 # Semi-implicit Euler needs omega_max * dt well below 2 for the stiffest (highest) mode:
-# loop 77 Hz -> 0.48 at 1 ms; linear 245 Hz -> 0.77 at 0.5 ms.
+# loop 77 Hz -> 0.48 at 1 ms. The linear creature's step is set by its contact time
+# constant (MuJoCo wants >= 2 steps per time constant; we use 4).
 LOOP_TIMESTEP = 0.001
-LINEAR_TIMESTEP = 0.0005
+LINEAR_TIMESTEP = 0.00025
 
 
-def _header(name: str, comment: str, timestep: float) -> str:
+def _header(
+    name: str,
+    comment: str,
+    timestep: float,
+    geom_type: str = "box",
+    solref: str = "0.004 1",
+) -> str:
     return f"""<!-- {comment}
      Generated by scripts/modal_make_creatures.py; see that script for the design. -->
 <mujoco model="{name}">
@@ -55,8 +80,8 @@ def _header(name: str, comment: str, timestep: float) -> str:
   </visual>
   <default>
     <joint type="hinge" axis="0 1 0" stiffness="{STIFFNESS}" damping="{DAMPING}"/>
-    <geom type="box" contype="1" conaffinity="0" friction="{FRICTION} 0.005 0.0001"
-          solref="0.004 1" rgba="0.85 0.55 0.25 1"/>
+    <geom type="{geom_type}" contype="1" conaffinity="0" friction="{FRICTION} 0.005 0.0001"
+          solref="{solref}" rgba="0.85 0.55 0.25 1"/>
     <motor ctrllimited="false" gear="1"/>
   </default>
   <asset>
@@ -67,7 +92,7 @@ def _header(name: str, comment: str, timestep: float) -> str:
   <worldbody>
     <light pos="0 -1 3" dir="0 0.3 -1" directional="true"/>
     <geom name="ground" type="plane" size="20 20 0.1" material="grid" contype="0"
-          conaffinity="1" friction="{FRICTION} 0.005 0.0001" solref="0.004 1"/>
+          conaffinity="1" friction="{FRICTION} 0.005 0.0001" solref="{solref}"/>
 """
 
 
@@ -127,23 +152,54 @@ def make_loop() -> str:
     return xml
 
 
+def _capsule(i: int, sign: int) -> str:
+    shade = "0.85 0.55 0.25 1" if i % 2 == 0 else "0.75 0.45 0.2 1"
+    return (
+        f'<geom name="link{i}" size="{LINEAR_RADIUS:.6g}" '
+        f'fromto="0 0 0 {sign * LINK_LENGTH:.6g} 0 0" mass="{LINEAR_LINK_MASS}" rgba="{shade}"/>'
+    )
+
+
+def _linear_axis(joint: int) -> str:
+    # Body frames: x along the chain, y horizontal across it, z vertical (at rest). Odd
+    # joints (axis y) bend the chain out of the ground plane, even joints (axis z) in it.
+    return "0 1 0" if joint % 2 == 1 else "0 0 1"
+
+
 def make_linear() -> str:
     xml = _header(
-        "linear_creature", "Linear creature: 16 plates in an open chain, 21 dofs.", LINEAR_TIMESTEP
+        "linear_creature",
+        "Linear creature: 16 capsules in an open chain, hinge axes alternating, 21 dofs.",
+        LINEAR_TIMESTEP,
+        geom_type="capsule",
+        solref=LINEAR_SOLREF,
     )
-    length = N_LINKS * LINK_LENGTH
-    xml += f'    <body name="link0" pos="{-length / 2:.6g} 0 {THICKNESS / 2:.6g}">\n'
-    xml += '      <freejoint name="root"/>\n'
-    xml += f"      {_link_geom(0, LINEAR_LINK_MASS)}\n"
-    xml += f'      <site name="s0" pos="{LINK_LENGTH / 2:.6g} 0 0" size="0.005"/>\n'
+    r = LINEAR_ROOT
+    # The chain lies along world y, centred on the origin; the root (link r) has its frame
+    # at joint r, y = 0. It rolls along x.
+    xml += (
+        f'    <body name="link{r}" pos="0 0 {LINEAR_RADIUS:.6g}" euler="0 0 90">\n'
+        '      <freejoint name="root"/>\n'
+        f"      {_capsule(r, 1)}\n"
+    )
     indent = "      "
-    for i in range(1, N_LINKS):
+    # Links r+1 .. N-1: joint i sits at the near end of link i.
+    for i in range(r + 1, N_LINKS):
         xml += f'{indent}<body name="link{i}" pos="{LINK_LENGTH:.6g} 0 0">\n'
         indent += "  "
-        xml += f'{indent}<joint name="j{i}"/>\n'
-        xml += f"{indent}{_link_geom(i, LINEAR_LINK_MASS)}\n"
-        xml += f'{indent}<site name="s{i}" pos="{LINK_LENGTH / 2:.6g} 0 0" size="0.005"/>\n'
-    for _i in range(N_LINKS - 1, 0, -1):
+        xml += f'{indent}<joint name="j{i}" axis="{_linear_axis(i)}"/>\n'
+        xml += f"{indent}{_capsule(i, 1)}\n"
+    for _i in range(r + 1, N_LINKS):
+        indent = indent[:-2]
+        xml += f"{indent}</body>\n"
+    # Links r-1 .. 0 hang off the other side: joint i+1 sits at the near end of link i.
+    for i in range(r - 1, -1, -1):
+        pos = "0 0 0" if i == r - 1 else f"{-LINK_LENGTH:.6g} 0 0"
+        xml += f'{indent}<body name="link{i}" pos="{pos}">\n'
+        indent += "  "
+        xml += f'{indent}<joint name="j{i + 1}" axis="{_linear_axis(i + 1)}"/>\n'
+        xml += f"{indent}{_capsule(i, -1)}\n"
+    for _i in range(r):
         indent = indent[:-2]
         xml += f"{indent}</body>\n"
     xml += "    </body>\n  </worldbody>\n  <actuator>\n"
