@@ -14,6 +14,7 @@ BENCHES: dict[str, str] = {
     "forces": "flapsim.fluid.bench:run",
     "modal": "flapsim.modal.bench:run_modal",
     "creatures": "flapsim.modal.bench:run_creatures",
+    "swimmer": "flapsim.swim.bench:run",
     "dove": "flapsim.bird.bench:run",
 }
 

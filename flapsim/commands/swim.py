@@ -1,0 +1,112 @@
+"""``flapsim swim``: swim a stroke and report speed, stroke rate, distance per stroke and
+floating height (optionally a video)."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from flapsim.errors import InputError
+from flapsim.fluid.flow import FlowField, Source, Vortex
+from flapsim.swim.model import SwimmerParams
+from flapsim.swim.simulate import swim
+
+HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate and floating height"
+
+
+def _vec3(text: str, what: str) -> tuple[float, float, float]:
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise InputError(f"{what} must be three comma-separated numbers, got {text!r}") from None
+    if len(v) != 3 or not np.all(np.isfinite(v)):
+        raise InputError(f"{what} must be three finite comma-separated numbers, got {text!r}")
+    return v  # type: ignore[return-value]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--stroke", default="breaststroke",
+                   help="breaststroke, crawl, treading, or a stroke .toml file (default breaststroke)")
+    p.add_argument("--seconds", type=float, default=20.0, help="simulated time [s] (default 20)")
+    p.add_argument("--rate", type=float, default=None,
+                   help="stroke rate [cycles/s] (default: the stroke file's)")
+    p.add_argument("--density", type=float, default=None,
+                   help="water density [kg/m^3] (default 1025, the paper's 91 kg buoyancy)")
+    p.add_argument("--lungs", type=float, default=None,
+                   help="extra lung volume [L] (default 3, the paper's floater)")
+    p.add_argument("--friction", type=float, default=None,
+                   help="skin-friction coefficient eta [N s/m^3] (default 2)")
+    p.add_argument("--buoyancy", choices=("exact", "linear"), default="exact",
+                   help="submerged fraction: exact spherical cap or the paper's linear rule")
+    p.add_argument("--r-min", type=float, default=0.0,
+                   help="swimmer-induced flow ratio rMin of the paper's eq. 5 (default 0: off)")
+    p.add_argument("--r-max", type=float, default=0.0,
+                   help="swimmer-induced flow ratio rMax of the paper's eq. 5 (default 0: off)")
+    p.add_argument("--current", default="0,0,0", help="uniform water current vx,vy,vz [m/s]")
+    p.add_argument("--source", action="append", default=[], metavar="X,Y,Z,Q",
+                   help="add a point source at X,Y,Z of strength Q [m^3/s] (repeatable)")
+    p.add_argument("--vortex", action="append", default=[], metavar="X,Y,GAMMA",
+                   help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
+    p.add_argument("--timestep", type=float, default=None, help="physics step [s] (default 0.004)")
+    p.add_argument("--video", metavar="PATH", nargs="?", const="swim.mp4", default=None,
+                   help="also write an mp4 video (default file swim.mp4)")
+    p.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
+
+
+def _flow(args: argparse.Namespace) -> FlowField:
+    prims = []
+    for s in args.source:
+        parts = [float(x) for x in s.split(",")]
+        if len(parts) != 4:
+            raise InputError(f"--source needs X,Y,Z,Q, got {s!r}")
+        prims.append(Source(parts[:3], parts[3], core=0.3))
+    for s in args.vortex:
+        parts = [float(x) for x in s.split(",")]
+        if len(parts) != 3:
+            raise InputError(f"--vortex needs X,Y,GAMMA, got {s!r}")
+        prims.append(Vortex((parts[0], parts[1], 0.0), (0, 0, 1), parts[2], core=0.3))
+    return FlowField(prims)
+
+
+def run(args: argparse.Namespace) -> dict:
+    if not (0 < args.seconds <= 3600):
+        raise InputError(f"--seconds must be in (0, 3600], got {args.seconds}")
+    kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max}
+    for name, key in (("density", "water_density"), ("lungs", "lung_volume_l"),
+                      ("friction", "friction"), ("timestep", "timestep")):
+        if getattr(args, name) is not None:
+            kw[key] = getattr(args, name)
+    params = SwimmerParams(**kw)
+    video = args.video
+    if video is not None and not str(video).endswith(".mp4"):
+        raise InputError(f"--video must name an .mp4 file, got {video!r}")
+    result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=_flow(args),
+                  current=_vec3(args.current, "--current"),
+                  video_fps=args.fps if video else 0.0, progress=True)
+    s = result.summary()
+    s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    if video:
+        import imageio.v2 as imageio
+
+        from flapsim.io import atomic_path
+
+        with atomic_path(video, suffix=".mp4") as tmp:
+            with imageio.get_writer(tmp, fps=args.fps, codec="libx264", quality=7) as w:
+                for frame in result.frames:
+                    w.append_data(frame)
+        s["video"] = str(video)
+    print(f"{s['stroke']}: {s['seconds']:.1f} s simulated in {s['wall_s']:.1f} s "
+          f"({s['realtime_factor']:.1f}x real time)")
+    print(f"  speed            {s['speed_m_s']:.3f} m/s (after {2} cycles; whole run "
+          f"{s['mean_speed_whole_run_m_s']:.3f} m/s, {s['distance_m']:.2f} m)")
+    print(f"  stroke rate      {s['stroke_rate_hz']:.3f} cycles/s ({s['cycles']} cycles)")
+    print(f"  distance/stroke  {s['distance_per_stroke_m']:.3f} m")
+    print(f"  head centre      {s['head_height_mean_m']:+.3f} m mean, "
+          f"{s['head_height_min_m']:+.3f}..{s['head_height_max_m']:+.3f} m "
+          f"(above water {100 * s['head_above_water_fraction']:.0f}% of the time)")
+    print(f"  centre of mass   {s['com_height_mean_m']:+.3f} m mean relative to the surface")
+    print(f"  head drift       {s['head_horizontal_drift_max_m']:.3f} m max horizontally")
+    if video:
+        print(f"  video            {video}")
+    return s

@@ -1,0 +1,75 @@
+"""``flapsim bench swimmer``: simulated seconds per wall second for the swimmer, with its
+force providers and PD, against a bare ``mj_step`` of the same model in the same run."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import mujoco
+
+from flapsim.swim.layers import BasicStrokeLayer
+from flapsim.swim.model import Swimmer
+from flapsim.swim.strokes import load_stroke
+
+
+def run(args: argparse.Namespace) -> dict:
+    seconds = float(args.seconds or 5.0)
+    sw = Swimmer()
+    stroke = load_stroke("breaststroke")
+    layer = BasicStrokeLayer(sw, stroke)
+    m, d = sw.model, sw.data
+    dt = m.opt.timestep
+
+    chunk = max(1, int(round(1.0 / dt)))  # 1 s from the start pose, then reset
+
+    def bare(n: int) -> None:
+        mujoco.mj_step(m, d, nstep=n)
+
+    def full(n: int) -> None:
+        for i in range(n):
+            if i % 5 == 0:
+                sw.update_flow()
+            layer.apply(d, dt)
+            mujoco.mj_step(m, d)
+
+    out = {}
+    for label, fn, providers in (("bare_mj_step", bare, False), ("swimmer", full, True)):
+        if providers:
+            sw.attach()
+        sw.reset("prone", qpos_joints=layer.start_pose(0.0))
+        fn(50)  # warm-up (numba compile, caches)
+        steps, wall = 0, 0.0
+        while wall < seconds / 2:
+            # every chunk restarts from the same pose, so both runs see the same states
+            # (a limp, unforced swimmer would otherwise sink onto the pool floor)
+            sw.reset("prone", qpos_joints=layer.start_pose(0.0))
+            layer.phase = 0.0
+            t0 = time.perf_counter()
+            fn(chunk)
+            wall += time.perf_counter() - t0
+            steps += chunk
+        sim = steps * dt
+        out[label] = {"steps": steps, "sim_s": sim, "wall_s": wall, "realtime_factor": sim / wall,
+                      "us_per_step": 1e6 * wall / steps}
+        if providers:
+            sw.detach()
+    ratio = out["swimmer"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
+    result = {
+        "benchmark": "swimmer",
+        "timestep_s": dt,
+        "polygons": len(sw.polygons),
+        "ellipsoids": len(sw.buoyancy.volumes),
+        "bare": out["bare_mj_step"],
+        "swimmer": out["swimmer"],
+        "cost_vs_bare_step": ratio,
+        "target_realtime_factor": 20.0,
+    }
+    print(f"swimmer: {len(sw.polygons)} polygons, {result['ellipsoids']} buoyancy ellipsoids, "
+          f"dt {dt * 1e3:g} ms, breaststroke with PD every step")
+    print(f"  bare mj_step     {out['bare_mj_step']['us_per_step']:.1f} us/step "
+          f"({out['bare_mj_step']['realtime_factor']:.0f}x real time)")
+    print(f"  full swimmer     {out['swimmer']['us_per_step']:.1f} us/step "
+          f"({out['swimmer']['realtime_factor']:.1f}x real time; target >= 20x)")
+    print(f"  cost vs bare     {ratio:.2f}x")
+    return result

@@ -1,0 +1,431 @@
+"""The swimmer: its MJCF model, hydrodynamic polygons, buoyancy and the water it swims in.
+
+``Swimmer(params)`` loads ``swimmer_mjcf/pool.xml`` (or ``swimmer.xml``), sets the lung
+volume, and attaches two force providers to its ``MjData``:
+
+* hydrodynamics (:class:`flapsim.fluid.surfaces.SurfaceForces`): every box face is a
+  polygon with the paper's forward vector F along its long side, the Hoerner thin-plate
+  table for aspect ratio 0.2, friction ``eta a_t v_t``, front-facing polygons only, and
+  the free surface at the water level (a face above it feels nothing: air forces on a
+  swimmer are ~1000x smaller). Faces are split into patches no longer than
+  ``patch_length`` so the force on a rotating limb follows its speed along it. Where two
+  segments meet end to end at a joint (spine, neck, hips, knees, elbows, wrists, ankles)
+  the touching parts of their end faces are inside the body, never wetted, and removed;
+* buoyancy (:class:`flapsim.fluid.buoyancy.Buoyancy`): one ellipsoid per segment with
+  the segment's volume (box volume, the thorax's including the lungs).
+
+The paper's swimmer-induced flow (its eq. 5) is :meth:`Swimmer.update_flow`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from flapsim.assets import asset_path
+from flapsim.errors import InputError, ModelError
+from flapsim.fluid.buoyancy import Buoyancy, BuoyancyParams
+from flapsim.fluid.coefficients import hoerner_plate
+from flapsim.fluid.flow import FlowField
+from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
+from flapsim.sim.callbacks import DISPATCHER, Registration
+
+#: segment (body and box geom) names, parent first
+SEGMENTS = (
+    "pelvis", "abdomen", "thorax", "head",
+    "upper_arm_l", "forearm_l", "hand_l", "upper_arm_r", "forearm_r", "hand_r",
+    "thigh_l", "shank_l", "foot_l", "thigh_r", "shank_r", "foot_r",
+)
+#: mass density of the segments before the lungs (the paper) [kg/m^3]
+BODY_DENSITY = 1044.0
+#: lung volume built into swimmer.xml [L] (scripts/swimmer_generate.py)
+XML_LUNG_L = 3.0
+#: the upper trunk box's depth, width and length [m] at XML_LUNG_L is read from the model
+
+
+@dataclass(frozen=True)
+class SwimmerParams:
+    """Swimmer body, water and fluid-model settings (defaults: the paper, see each field)."""
+
+    #: extra upper-trunk volume of air-filled lungs [L]; the paper: "up to 3 L", which
+    #: turns its cadaveric (1.044 g/mL) swimmer from a sinker into a floater
+    lung_volume_l: float = 3.0
+    #: water density [kg/m^3]; 1025 (sea water) reproduces the paper's 91 kg buoyancy for
+    #: 85.8 L + 3 L (at 998, fresh water, the 3 L swimmer sinks slowly)
+    water_density: float = 1025.0
+    #: skin-friction coefficient eta [N s/m^3] of the paper's eq. 2: 1/2 rho Cf v with a
+    #: turbulent flat-plate Cf ~ 0.004 (Re ~ 2e6, 0.074 Re^-0.2) at 1 m/s
+    friction: float = 2.0
+    #: height of the water surface [m]
+    water_level: float = 0.0
+    #: buoyancy: "exact" spherical cap, or the paper's "linear" (1 + cos theta)/2
+    buoyancy_method: str = "exact"
+    #: swimmer-induced flow ratios of the paper's eq. 5 (user-defined there; 0 = off)
+    r_min: float = 0.0
+    #: see r_min
+    r_max: float = 0.0
+    #: longest patch a box face is split into [m] (force distribution along limbs)
+    patch_length: float = 0.12
+    #: drop the parts of end faces that touch the neighbouring segment at a joint
+    hide_joint_faces: bool = True
+    #: normal drag coefficient of the AR-0.2 plate at 90 deg (Hoerner: 1.17 square .. 1.98 2-D)
+    cd_normal: float = 1.2
+    #: "pool" (floor 3 m down, visible water) or "bare" (swimmer.xml only)
+    world: str = "pool"
+    #: physics timestep [s]; 4 ms is stable with the PD gains of flapsim.swim.pd
+    timestep: float = 0.004
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.lung_volume_l <= 6.0):
+            raise InputError(f"lung_volume_l must be 0..6 L (human vital capacity), got "
+                             f"{self.lung_volume_l}")
+        if not (self.water_density > 0 and math.isfinite(self.water_density)):
+            raise InputError(f"water_density must be > 0 kg/m^3, got {self.water_density}")
+        if self.world not in ("pool", "bare"):
+            raise InputError(f"world must be 'pool' or 'bare', got {self.world!r}")
+        if not (1e-4 <= self.timestep <= 0.01):
+            raise InputError(f"timestep must be 0.0001..0.01 s, got {self.timestep}")
+        if self.r_min < 0 or self.r_max < 0 or self.r_min > 1 or self.r_max > 1:
+            raise InputError("r_min and r_max are ratios in 0..1")
+        if self.patch_length <= 0:
+            raise InputError("patch_length must be > 0 m")
+
+
+def load_swimmer_model(lung_volume_l: float = XML_LUNG_L, world: str = "pool",
+                       timestep: float | None = None) -> mujoco.MjModel:
+    """Compile the swimmer with the upper trunk holding ``lung_volume_l`` litres of air.
+
+    The thorax box keeps its length and width:depth ratio and its mass; its volume is
+    its cadaveric volume (mass / 1044 kg/m^3) plus the lungs.
+    """
+    path = asset_path("swimmer_mjcf", "pool.xml" if world == "pool" else "swimmer.xml")
+    spec = mujoco.MjSpec.from_file(str(path))
+    g = spec.geom("thorax")
+    if g is None:
+        raise ModelError(f"{path} has no geom 'thorax'; regenerate it with "
+                         "scripts/swimmer_generate.py")
+    half = np.array(g.size[:3], dtype=float)
+    base = g.mass / BODY_DENSITY
+    vol = base + lung_volume_l * 1e-3
+    scale = math.sqrt(vol / (8.0 * half.prod()))
+    g.size = [half[0] * scale, half[1] * scale, half[2]]
+    if timestep is not None:
+        spec.option.timestep = timestep
+    with DISPATCHER.suspended():
+        try:
+            return spec.compile()
+        except ValueError as exc:  # pragma: no cover - the shipped file compiles
+            raise ModelError(f"cannot compile {path}: {exc}") from None
+
+
+# -- polygons --------------------------------------------------------------------------
+def _box_faces(half: np.ndarray) -> list[tuple[int, float, np.ndarray, np.ndarray]]:
+    """(axis, sign, rect lo, rect hi) per face; rect in the face's two other axes."""
+    out = []
+    for axis in range(3):
+        others = [a for a in range(3) if a != axis]
+        for sign in (1.0, -1.0):
+            out.append((axis, sign, -half[others], half[others].copy()))
+    return out
+
+
+def _rect_minus(lo: np.ndarray, hi: np.ndarray, clo: np.ndarray, chi: np.ndarray
+                ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Rectangle [lo, hi] minus [clo, chi] as up to four rectangles."""
+    clo = np.maximum(clo, lo)
+    chi = np.minimum(chi, hi)
+    if np.any(chi - clo <= 1e-9):
+        return [(lo, hi)]
+    parts = []
+    if clo[0] - lo[0] > 1e-9:
+        parts.append((lo.copy(), np.array([clo[0], hi[1]])))
+    if hi[0] - chi[0] > 1e-9:
+        parts.append((np.array([chi[0], lo[1]]), hi.copy()))
+    if clo[1] - lo[1] > 1e-9:
+        parts.append((np.array([clo[0], lo[1]]), np.array([chi[0], clo[1]])))
+    if hi[1] - chi[1] > 1e-9:
+        parts.append((np.array([clo[0], chi[1]]), np.array([chi[0], hi[1]])))
+    return parts
+
+
+def swimmer_polygons(model: mujoco.MjModel, patch_length: float = 0.12,
+                     hide_joint_faces: bool = True) -> PolygonSet:
+    """The box faces of every segment as a :class:`PolygonSet` (table 0).
+
+    Requires axis-aligned boxes in the zero pose (true for swimmer.xml). Each face's
+    forward vector F is its long side (the paper's Fig. 4).
+    """
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    boxes = {}
+    for name in SEGMENTS:
+        gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+        if gid < 0:
+            raise ModelError(f"swimmer model has no box geom {name!r}")
+        boxes[name] = gid
+    # faces in the zero pose (world frame == standing frame, axis-aligned)
+    faces = {}
+    for name, gid in boxes.items():
+        half = model.geom_size[gid].copy()
+        R = data.geom_xmat[gid].reshape(3, 3)
+        if not np.allclose(np.abs(R), np.eye(3), atol=1e-9):
+            raise ModelError(f"box {name!r} is not axis-aligned in the zero pose")
+        center = data.geom_xpos[gid].copy()
+        # work in world axes: half sizes along world x, y, z
+        whalf = np.abs(R) @ half
+        faces[name] = [(axis, sign, [(lo, hi)]) for axis, sign, lo, hi in _box_faces(whalf)]
+        boxes[name] = (gid, center, whalf)
+    if hide_joint_faces:
+        for name in SEGMENTS:
+            gid, c, h = boxes[name]
+            bid = model.geom_bodyid[gid]
+            parent = model.body_parentid[bid]
+            if parent < 1:
+                continue
+            pname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, parent)
+            pg, pc, ph = boxes[pname]
+            for i, (axis, sign, rects) in enumerate(faces[name]):
+                plane = c[axis] + sign * h[axis]
+                for j, (paxis, psign, prects) in enumerate(faces[pname]):
+                    if paxis != axis or psign != -sign:
+                        continue
+                    if abs(pc[paxis] + psign * ph[paxis] - plane) > 1e-6:
+                        continue
+                    others = [a for a in range(3) if a != axis]
+                    # overlap of the two faces in world coordinates of the other axes
+                    clo = np.maximum(c[others] - h[others], pc[others] - ph[others])
+                    chi = np.minimum(c[others] + h[others], pc[others] + ph[others])
+                    if np.any(chi <= clo):
+                        continue
+                    faces[name][i] = (axis, sign, [
+                        r for lo, hi in rects
+                        for r in _rect_minus(lo, hi, clo - c[others], chi - c[others])])
+                    faces[pname][j] = (paxis, psign, [
+                        r for lo, hi in prects
+                        for r in _rect_minus(lo, hi, clo - pc[others], chi - pc[others])])
+    sets = []
+    for name in SEGMENTS:
+        gid, c, h = boxes[name]
+        bid = int(model.geom_bodyid[gid])
+        xpos = data.xpos[bid]
+        xR = data.xmat[bid].reshape(3, 3)
+        polys, fwds = [], []
+        for axis, sign, rects in faces[name]:
+            others = [a for a in range(3) if a != axis]
+            # F: the long side of the whole face (not of a patch), as in the paper
+            long_ax = others[0] if h[others[0]] >= h[others[1]] else others[1]
+            for lo, hi in rects:
+                size = hi - lo
+                if size.min() < 1e-6:
+                    continue
+                n_u = max(1, math.ceil(size[0] / patch_length - 1e-9))
+                n_v = max(1, math.ceil(size[1] / patch_length - 1e-9))
+                for iu in range(n_u):
+                    for iv in range(n_v):
+                        u0 = lo[0] + size[0] * iu / n_u
+                        u1 = lo[0] + size[0] * (iu + 1) / n_u
+                        v0 = lo[1] + size[1] * iv / n_v
+                        v1 = lo[1] + size[1] * (iv + 1) / n_v
+                        quad = []
+                        order = ((u0, v0), (u1, v0), (u1, v1), (u0, v1))
+                        if sign < 0:
+                            order = order[::-1]
+                        for u, v in order:
+                            p = c.copy()
+                            p[axis] += sign * h[axis]
+                            p[others[0]] += u
+                            p[others[1]] += v
+                            quad.append(p)
+                        quad = np.asarray(quad)
+                        # right-hand normal must point outward: fix the winding if not
+                        nrm = np.cross(quad[1] - quad[0], quad[2] - quad[0])
+                        if nrm[axis] * sign < 0:
+                            quad = quad[::-1]
+                        polys.append((quad - xpos) @ xR)  # world -> body frame
+                        f = np.zeros(3)
+                        f[long_ax] = 1.0
+                        fwds.append(xR.T @ f)
+        sets.append(PolygonSet.from_polygons(bid, np.asarray(polys), np.asarray(fwds), 0,
+                                             labels=[name] * len(polys)))
+    return PolygonSet.concat(sets)
+
+
+# -- the swimmer -----------------------------------------------------------------------
+@dataclass
+class JointInfo:
+    """The swimmer's actuated joints in MuJoCo order."""
+
+    names: list[str]
+    types: np.ndarray  # 0 hinge, 1 ball
+    qadr: np.ndarray
+    dadr: np.ndarray
+    actuator: np.ndarray  # first actuator of each joint (balls: 3 consecutive)
+    nq: int = 0
+    nv: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def joint_info(model: mujoco.MjModel) -> JointInfo:
+    """Every non-root joint with its qpos/qvel addresses and its motors (checked)."""
+    names, types, qadr, dadr, act = [], [], [], [], []
+    for j in range(model.njnt):
+        t = int(model.jnt_type[j])
+        if t == int(mujoco.mjtJoint.mjJNT_FREE):
+            continue
+        if t not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_BALL)):
+            raise ModelError("swimmer joints must be hinges or balls")
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+        motors = [a for a in range(model.nu) if model.actuator_trnid[a, 0] == j]
+        ndof = 3 if t == int(mujoco.mjtJoint.mjJNT_BALL) else 1
+        if len(motors) != ndof:
+            raise ModelError(f"joint {name!r} needs {ndof} motor(s), has {len(motors)}")
+        if ndof == 3:
+            for k, a in enumerate(motors):
+                if not np.allclose(model.actuator_gear[a, :3], np.eye(3)[k]):
+                    raise ModelError(f"ball joint {name!r}: motor {k} must have gear along "
+                                     "local axis {k}")
+        names.append(name)
+        types.append(1 if ndof == 3 else 0)
+        qadr.append(model.jnt_qposadr[j])
+        dadr.append(model.jnt_dofadr[j])
+        act.append(motors[0])
+    return JointInfo(names, np.asarray(types, dtype=np.int64), np.asarray(qadr, dtype=np.int64),
+                     np.asarray(dadr, dtype=np.int64), np.asarray(act, dtype=np.int64))
+
+
+def _quat_y(angle: float) -> np.ndarray:
+    return np.array([math.cos(angle / 2), 0.0, math.sin(angle / 2), 0.0])
+
+
+#: root orientations: prone = face down, head towards +x (a +90 deg turn about y)
+POSTURES = {"prone": _quat_y(math.pi / 2), "upright": np.array([1.0, 0.0, 0.0, 0.0])}
+
+
+class Swimmer:
+    """The swimmer model, its data, and the water's forces on it."""
+
+    def __init__(self, params: SwimmerParams | None = None, flow: FlowField | None = None
+                 ) -> None:
+        self.params = params or SwimmerParams()
+        p = self.params
+        self.model = load_swimmer_model(p.lung_volume_l, p.world, p.timestep)
+        self.data = mujoco.MjData(self.model)
+        self.joints = joint_info(self.model)
+        self.body = {n: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, n)
+                     for n in SEGMENTS}
+        self.polygons = swimmer_polygons(self.model, p.patch_length, p.hide_joint_faces)
+        self.flow = flow or FlowField()
+        self._current = self.flow.params[1:4].copy()  # the user's uniform current
+        table = hoerner_plate(0.2, cd_crossflow=p.cd_normal)
+        self.hydro = SurfaceForces(
+            self.model, self.polygons, [table],
+            FluidParams(density=p.water_density, friction=p.friction, front_facing_only=True,
+                        surface_z=p.water_level),
+            self.flow, name="swimmer hydrodynamics",
+        )
+        volumes = {}
+        for n in SEGMENTS:
+            gid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, n)
+            volumes[n] = 8.0 * float(np.prod(self.model.geom_size[gid]))
+        self.buoyancy = Buoyancy.for_bodies(
+            self.model, list(SEGMENTS), p.water_level, p.water_density, p.buoyancy_method,
+            volumes=volumes,
+        )
+        self._regs: list[Registration] = []
+
+    # -- forces ------------------------------------------------------------------------
+    def attach(self) -> None:
+        """Start applying hydrodynamics and buoyancy at every step."""
+        if not self._regs:
+            self._regs = [self.hydro.register(self.data), self.buoyancy.register(self.data)]
+
+    def detach(self) -> None:
+        for r in self._regs:
+            r.remove()
+        self._regs = []
+
+    def __enter__(self) -> Swimmer:
+        self.attach()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.detach()
+
+    def set_water_density(self, rho: float) -> None:
+        """Change the water density for both buoyancy and hydrodynamics, in place."""
+        p = self.hydro.params
+        self.hydro.set_params(FluidParams(rho, p.friction, p.front_facing_only, p.surface_z))
+        b = self.buoyancy.params
+        self.buoyancy.set_params(BuoyancyParams(b.water_level, rho, b.method))
+
+    def update_flow(self) -> np.ndarray:
+        """Swimmer-induced flow (paper eq. 5) plus the user's uniform current, set as the
+        flow field's uniform part. Call once per control step; returns V_F [m/s]."""
+        p = self.params
+        vs = self.com_velocity()
+        speed = float(np.linalg.norm(vs))
+        vf = np.zeros(3)
+        if speed > 1e-9 and (p.r_min > 0 or p.r_max > 0):
+            axis = self.data.xmat[self.body["pelvis"]].reshape(3, 3)[:, 2]
+            cos_a = abs(float(vs @ axis)) / speed
+            sin3 = max(0.0, 1.0 - cos_a * cos_a) ** 1.5
+            vf = ((p.r_max - p.r_min) * sin3 + p.r_min) * vs
+        self.flow.set_uniform(self._current + vf)
+        return vf
+
+    def set_current(self, velocity: np.ndarray) -> None:
+        """The user's uniform water current [m/s] (world frame)."""
+        self._current = np.asarray(velocity, dtype=float).copy()
+        self.update_flow()
+
+    # -- state -------------------------------------------------------------------------
+    def reset(self, posture: str = "prone", height: float | None = None,
+              qpos_joints: np.ndarray | None = None) -> None:
+        """Put the swimmer at rest in ``posture`` with its pelvis at ``height`` [m]
+        (default: the thorax at the surface when prone, the head's centre at the
+        surface when upright). ``qpos_joints`` sets the non-root joints."""
+        if posture not in POSTURES:
+            raise InputError(f"posture must be one of {', '.join(POSTURES)}, got {posture!r}")
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        if qpos_joints is not None:
+            d.qpos[7:] = qpos_joints
+        if height is None:
+            head = m.body_pos[self.body["head"]][2] + m.body_pos[self.body["thorax"]][2] + \
+                m.body_pos[self.body["abdomen"]][2]
+            gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head")
+            head += m.geom_pos[gid][2]
+            height = self.params.water_level + (-0.12 if posture == "prone" else -head)
+        d.qpos[:3] = (0.0, 0.0, height)
+        d.qpos[3:7] = POSTURES[posture]
+        mujoco.mj_forward(m, d)
+
+    def com(self) -> np.ndarray:
+        """Whole-body centre of mass [m]."""
+        return self.data.subtree_com[self.body["pelvis"]].copy()
+
+    def com_velocity(self) -> np.ndarray:
+        """Whole-body centre-of-mass velocity [m/s] (world)."""
+        mujoco.mj_subtreeVel(self.model, self.data)
+        return self.data.subtree_linvel[self.body["pelvis"]].copy()
+
+    def head_height(self) -> float:
+        """Height of the head box's centre above the water surface [m]."""
+        gid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, "head")
+        return float(self.data.geom_xpos[gid][2] - self.params.water_level)
+
+    def displaced_mass(self) -> float:
+        """Mass of water displaced now [kg]."""
+        return self.buoyancy.submerged_mass(self.data)
+
+    @property
+    def mass(self) -> float:
+        return float(self.model.body_subtreemass[self.body["pelvis"]])
+
+    @property
+    def volume(self) -> float:
+        """Body volume including the lungs [m^3]."""
+        return self.buoyancy.total_volume

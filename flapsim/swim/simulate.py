@@ -1,0 +1,182 @@
+"""Swim a stroke for a while and measure it: speed, stroke rate, distance per stroke,
+floating height, drift.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from flapsim.errors import SimulationError
+from flapsim.fluid.flow import FlowField
+from flapsim.sim.callbacks import DISPATCHER
+from flapsim.swim.layers import BasicStrokeLayer
+from flapsim.swim.model import Swimmer, SwimmerParams
+from flapsim.swim.strokes import Stroke, load_stroke
+
+log = logging.getLogger(__name__)
+
+SAMPLE_HZ = 50.0  # recorded states per simulated second
+SETTLE_CYCLES = 2  # cycles left out of the steady-state averages (start from rest)
+
+
+@dataclass
+class SwimResult:
+    """What one swim measured (SI units; world frame, +x = the initial heading)."""
+
+    stroke: str
+    seconds: float
+    rate_hz: float
+    cycles: int
+    times: np.ndarray = field(repr=False)
+    com: np.ndarray = field(repr=False)  # (n, 3)
+    head: np.ndarray = field(repr=False)  # (n, 3) head box centre
+    wall_s: float = 0.0
+    water_level: float = 0.0
+    frames: list = field(default_factory=list, repr=False)
+
+    def _steady(self) -> np.ndarray:
+        t0 = SETTLE_CYCLES / self.rate_hz if self.seconds > 3 * SETTLE_CYCLES / self.rate_hz else 0
+        return self.times >= t0
+
+    @property
+    def distance_m(self) -> float:
+        """Forward (+x) displacement of the centre of mass over the whole run [m]."""
+        return float(self.com[-1, 0] - self.com[0, 0])
+
+    @property
+    def speed(self) -> float:
+        """Mean forward speed of the centre of mass after the first cycles [m/s]
+        (whole cycles only, so the intra-cycle surge averages out)."""
+        sel = self._steady()
+        t = self.times[sel]
+        x = self.com[sel, 0]
+        ncyc = math.floor((t[-1] - t[0]) * self.rate_hz)
+        if ncyc < 1:
+            return float((x[-1] - x[0]) / max(t[-1] - t[0], 1e-9))
+        t_end = t[0] + ncyc / self.rate_hz
+        k = int(np.searchsorted(t, t_end - 1e-9))
+        k = min(k, len(t) - 1)
+        return float((x[k] - x[0]) / (t[k] - t[0]))
+
+    @property
+    def distance_per_stroke(self) -> float:
+        """Forward distance per cycle [m]."""
+        return self.speed / self.rate_hz
+
+    def summary(self) -> dict:
+        head_z = self.head[:, 2] - self.water_level
+        com_z = self.com[:, 2] - self.water_level
+        sel = self._steady()
+        drift = np.linalg.norm(self.head[:, :2] - self.head[0, :2], axis=1)
+        return {
+            "stroke": self.stroke,
+            "seconds": self.seconds,
+            "stroke_rate_hz": self.rate_hz,
+            "cycles": self.cycles,
+            "speed_m_s": self.speed,
+            "mean_speed_whole_run_m_s": self.distance_m / self.seconds,
+            "distance_m": self.distance_m,
+            "distance_per_stroke_m": self.distance_per_stroke,
+            "head_height_mean_m": float(head_z[sel].mean()),
+            "head_height_min_m": float(head_z[sel].min()),
+            "head_height_max_m": float(head_z[sel].max()),
+            "head_above_water_fraction": float((head_z[sel] > 0).mean()),
+            "com_height_mean_m": float(com_z[sel].mean()),
+            "com_height_end_m": float(com_z[-1]),
+            "lateral_drift_m": float(self.com[-1, 1] - self.com[0, 1]),
+            "head_horizontal_drift_max_m": float(drift.max()),
+            "wall_s": self.wall_s,
+            "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
+        }
+
+
+def swim(
+    stroke: str | Stroke,
+    seconds: float = 20.0,
+    params: SwimmerParams | None = None,
+    rate_hz: float | None = None,
+    flow: FlowField | None = None,
+    current: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    video_fps: float = 0.0,
+    video_size: tuple[int, int] = (480, 640),
+    progress: bool = False,
+    swimmer: Swimmer | None = None,
+) -> SwimResult:
+    """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
+
+    ``video_fps`` > 0 also renders frames (offscreen) into ``result.frames``.
+    """
+    st = stroke if isinstance(stroke, Stroke) else load_stroke(stroke)
+    sw = swimmer or Swimmer(params, flow)
+    layer = BasicStrokeLayer(sw, st, rate_hz)
+    sw.reset(st.posture, qpos_joints=layer.start_pose(0.0))
+    sw.set_current(np.asarray(current, dtype=float))
+    m, d = sw.model, sw.data
+    dt = m.opt.timestep
+    nsteps = int(round(seconds / dt))
+    every = max(1, int(round(1.0 / (SAMPLE_HZ * dt))))
+    control_every = max(1, int(round(0.02 / dt)))  # swimmer-induced flow at 50 Hz
+    times, com, head = [], [], []
+    head_gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head")
+    pelvis = sw.body["pelvis"]
+    renderer = None
+    frames: list[np.ndarray] = []
+    frame_every = 0
+    if video_fps > 0:
+        renderer = mujoco.Renderer(m, *video_size)
+        frame_every = max(1, int(round(1.0 / (video_fps * dt))))
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        cam.azimuth, cam.elevation, cam.distance = 120.0, -18.0, 3.2
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=round(seconds, 3), unit="sim s", desc=st.name, leave=False)
+    t_wall = time.perf_counter()
+    try:
+        with sw:
+            t_wall = time.perf_counter()  # after attaching (which may compile the callback)
+            for i in range(nsteps + 1):
+                if i % every == 0:
+                    times.append(d.time)
+                    com.append(d.subtree_com[pelvis].copy())
+                    head.append(d.geom_xpos[head_gid].copy())
+                if renderer is not None and i % frame_every == 0:
+                    cam.lookat[:] = d.subtree_com[pelvis]
+                    renderer.update_scene(d, camera=cam)
+                    frames.append(renderer.render())
+                if i == nsteps:
+                    break
+                if i % control_every == 0:
+                    sw.update_flow()
+                    if bar is not None and i:
+                        bar.update(round(control_every * dt, 6))
+                layer.apply(d, dt)
+                mujoco.mj_step(m, d)
+                if i % 500 == 0:
+                    _check(m, d)
+            _check(m, d)
+    finally:
+        if renderer is not None:
+            renderer.close()
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - t_wall
+    return SwimResult(st.name, nsteps * dt, layer.rate_hz, layer.cycles, np.asarray(times),
+                      np.asarray(com), np.asarray(head), wall, sw.params.water_level, frames)
+
+
+def _check(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    DISPATCHER.check(d)
+    if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
+        raise SimulationError(
+            f"the swimmer diverged at t={d.time:.3f} s: lower the timestep (now "
+            f"{m.opt.timestep:g} s) or the PD gains"
+        )

@@ -1,0 +1,303 @@
+"""Stroke files: per-joint keyframed pose cycles (the paper's pose control graph).
+
+A stroke is a TOML file (``flapsim/swim/strokes/<name>.toml``, or any path) that keys
+each joint's anatomical angles separately over one cycle (phase 0..1), as the paper
+does ("key poses are defined for each joint separately"), in degrees::
+
+    name = "breaststroke"
+    period_s = 1.4            # cycle time at the default stroke rate
+    posture = "prone"         # starting posture: prone (face down) or upright
+    interpolation = "pchip"   # pchip (smooth, no overshoot) or linear
+
+    [pose]                    # constant angles for dofs that are not keyed
+    "ankle_l.plantar" = 60
+
+    [keys.shoulder_l]         # [[phase, degrees], ...] per anatomical dof
+    flex = [[0.0, 178], [0.3, 110], [0.6, 178]]
+
+    [mirror]                  # copy a joint to the other side, shifted in phase
+    shoulder_r = { from = "shoulder_l", shift = 0.0 }
+
+Anatomical dofs (standing frame: x anterior, y left, z up; positive as named):
+lumbar/thoracic/neck: flex (forward), bend (to the left), twist (to the left);
+shoulder_*/hip_*: flex (limb forward), abd (limb out), rot (internal rotation);
+elbow_*: flex, pronation (0 = palm facing the body); wrist_*: flex (towards the palm);
+knee_*: flex; ankle_*: plantar (toes down), inversion (sole inwards).
+A ball joint's target is the rotation flex (about the side axis), then abduction
+(about the new forward axis), then rotation (about the limb's own axis).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from flapsim.errors import DataFileError, InputError
+from flapsim.swim.model import JointInfo
+
+STROKE_DIR = Path(__file__).resolve().parent / "strokes"
+STROKES = ("breaststroke", "crawl", "treading")
+
+_BALL_LIMB = ("flex", "abd", "rot")
+#: anatomical joint -> (kind, mujoco joint(s), dof names, signs)
+ANATOMY: dict[str, tuple] = {
+    "lumbar": ("ball", "lumbar", ("flex", "bend", "twist"), (1, -1, 1)),
+    "thoracic": ("ball", "thoracic", ("flex", "bend", "twist"), (1, -1, 1)),
+    "neck": ("ball", "neck", ("flex", "bend", "twist"), (1, -1, 1)),
+}
+for _s, _sign in (("l", 1), ("r", -1)):
+    # flexion turns a hanging limb forward: a rotation about -y on both sides
+    ANATOMY[f"shoulder_{_s}"] = ("ball", f"shoulder_{_s}", _BALL_LIMB, (-1, _sign, -_sign))
+    ANATOMY[f"hip_{_s}"] = ("ball", f"hip_{_s}", _BALL_LIMB, (-1, _sign, -_sign))
+    ANATOMY[f"elbow_{_s}"] = ("hinge", {"flex": f"elbow_flex_{_s}",
+                                        "pronation": f"elbow_pron_{_s}"})
+    ANATOMY[f"wrist_{_s}"] = ("hinge", {"flex": f"wrist_{_s}"})
+    ANATOMY[f"knee_{_s}"] = ("hinge", {"flex": f"knee_{_s}"})
+    ANATOMY[f"ankle_{_s}"] = ("hinge", {"plantar": f"ankle_flex_{_s}",
+                                        "inversion": f"ankle_inv_{_s}"})
+
+
+def dof_names() -> list[str]:
+    """Every ``joint.dof`` a stroke file may key."""
+    out = []
+    for joint, spec in ANATOMY.items():
+        dofs = spec[2] if spec[0] == "ball" else tuple(spec[1])
+        out += [f"{joint}.{d}" for d in dofs]
+    return out
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """A parsed stroke file: one periodic curve (degrees over phase) per anatomical dof."""
+
+    #: stroke name
+    name: str
+    #: cycle time at the default stroke rate [s]
+    period_s: float
+    #: starting posture ("prone" or "upright")
+    posture: str
+    #: "pchip" or "linear"
+    interpolation: str
+    #: ``joint.dof`` -> (phases, degrees[, turn]) keyframes, phases in [0, 1); ``turn``
+    #: [deg, a multiple of 360] is what the angle gains per cycle (default 0)
+    keys: dict
+    #: free text: what the stroke is based on
+    description: str = ""
+    #: file it came from
+    path: str = ""
+
+    @property
+    def rate_hz(self) -> float:
+        """Default stroke rate [cycles/s]."""
+        return 1.0 / self.period_s
+
+    def curve(self, dof: str, phase: np.ndarray) -> np.ndarray:
+        """Angle [deg] of ``joint.dof`` at the given phases (periodic)."""
+        ph, val, turn = _unpack(self.keys.get(dof, (np.zeros(1), np.zeros(1))))
+        x = np.mod(np.asarray(phase, dtype=float), 1.0)
+        if len(ph) == 1:
+            return np.full_like(x, val[0])
+        # periodic up to whole turns: f(x + 1) = f(x) + turn (a limb circling its joint)
+        xs = np.concatenate([ph - 1.0, ph, ph + 1.0])
+        ys = np.concatenate([val - turn, val, val + turn])
+        if self.interpolation == "linear":
+            return np.interp(x, xs, ys)
+        return PchipInterpolator(xs, ys)(x)
+
+
+def stroke_path(name_or_path: str) -> Path:
+    """A bundled stroke by name, or a TOML file path."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml":
+        if not p.exists():
+            raise DataFileError(f"stroke file {p} does not exist")
+        return p
+    q = STROKE_DIR / f"{name_or_path}.toml"
+    if not q.exists():
+        avail = sorted(x.stem for x in STROKE_DIR.glob("*.toml"))
+        raise InputError(f"unknown stroke {name_or_path!r}; choose one of {', '.join(avail)} "
+                         "or give a .toml file")
+    return q
+
+
+def _pairs(where: str, raw: object) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        arr = np.asarray(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise DataFileError(f"{where}: keys must be [[phase, degrees], ...]") from None
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1 or not np.all(np.isfinite(arr)):
+        raise DataFileError(f"{where}: keys must be a non-empty list of [phase, degrees] pairs")
+    turn = 0.0
+    at_one = np.abs(arr[:, 0] - 1.0) < 1e-12
+    if np.any(at_one):
+        # a key at phase 1 closes a cycle that gains whole turns (a crawl arm's windmill)
+        at_zero = np.abs(arr[:, 0]) < 1e-12
+        if not np.any(at_zero):
+            raise DataFileError(f"{where}: a key at phase 1 needs a key at phase 0")
+        turn = float(arr[at_one, 1][0] - arr[at_zero, 1][0])
+        if abs(turn / 360.0 - round(turn / 360.0)) > 1e-9:
+            raise DataFileError(f"{where}: the phase-1 key must differ from the phase-0 key by "
+                                f"whole turns (360 deg), got {turn:g}")
+        arr = arr[~at_one]
+    ph = np.mod(arr[:, 0], 1.0)
+    order = np.argsort(ph, kind="stable")
+    ph, val = ph[order], arr[order, 1]
+    if np.any(np.diff(ph) <= 1e-9):
+        raise DataFileError(f"{where}: two keys at the same phase")
+    return ph, val, turn
+
+
+def _unpack(key: tuple) -> tuple[np.ndarray, np.ndarray, float]:
+    """(phases, degrees, turn per cycle) from a stored key (turn 0 when absent)."""
+    return (key[0], key[1], key[2]) if len(key) == 3 else (key[0], key[1], 0.0)
+
+
+def _shifted(key: tuple, shift: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The curve g(x) = f(x - shift): keys move by ``shift``; those that wrap past the
+    cycle end lose one turn."""
+    ph, val, turn = _unpack(key)
+    x = ph + shift
+    wraps = np.floor(x)
+    x = x - wraps
+    val = val - wraps * turn
+    order = np.argsort(x, kind="stable")
+    return x[order], val[order], turn
+
+
+def load_stroke(name_or_path: str) -> Stroke:
+    """Parse and check a stroke file (one-line errors naming the bad entry)."""
+    path = stroke_path(name_or_path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise DataFileError(f"{path}: not valid TOML ({exc})") from None
+    valid = set(dof_names())
+    try:
+        period = float(raw.get("period_s", 1.0))
+    except (TypeError, ValueError):
+        raise DataFileError(f"{path}: period_s must be a number of seconds") from None
+    if not (0.2 <= period <= 10.0):
+        raise DataFileError(f"{path}: period_s must be 0.2..10 s, got {period}")
+    posture = raw.get("posture", "prone")
+    if posture not in ("prone", "upright"):
+        raise DataFileError(f"{path}: posture must be 'prone' or 'upright', got {posture!r}")
+    interp = raw.get("interpolation", "pchip")
+    if interp not in ("pchip", "linear"):
+        raise DataFileError(f"{path}: interpolation must be 'pchip' or 'linear'")
+    keys: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for dof, value in raw.get("pose", {}).items():
+        if dof not in valid:
+            raise DataFileError(f"{path}: [pose] names unknown dof {dof!r}; valid: "
+                                f"{', '.join(sorted(valid))}")
+        keys[dof] = (np.zeros(1), np.array([float(value)]))
+    for joint, dofs in raw.get("keys", {}).items():
+        if not isinstance(dofs, dict):
+            raise DataFileError(f"{path}: [keys.{joint}] must be a table of dofs")
+        for dof, pairs in dofs.items():
+            full = f"{joint}.{dof}"
+            if full not in valid:
+                raise DataFileError(f"{path}: unknown dof {full!r}; valid: "
+                                    f"{', '.join(sorted(valid))}")
+            keys[full] = _pairs(f"{path} keys.{full}", pairs)
+    for target, spec in raw.get("mirror", {}).items():
+        src = spec.get("from") if isinstance(spec, dict) else None
+        if target not in ANATOMY or src not in ANATOMY:
+            raise DataFileError(f"{path}: mirror {target} = {spec!r} must name two joints")
+        shift = float(spec.get("shift", 0.0))
+        for full in [k for k in list(keys) if k.startswith(src + ".")]:
+            dof = full.split(".", 1)[1]
+            keys[f"{target}.{dof}"] = _shifted(keys[full], shift)
+    return Stroke(str(raw.get("name", path.stem)), period, posture, interp, keys,
+                  str(raw.get("description", "")), str(path))
+
+
+# -- joint targets ---------------------------------------------------------------------
+def _quat_axis(axis: int, angle: np.ndarray) -> np.ndarray:
+    q = np.zeros((angle.size, 4))
+    q[:, 0] = np.cos(angle / 2)
+    q[:, 1 + axis] = np.sin(angle / 2)
+    return q
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = a.T
+    w2, x2, y2, z2 = b.T
+    return np.column_stack([
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    ])
+
+
+def ball_quat(flex_deg: np.ndarray, abd_deg: np.ndarray, rot_deg: np.ndarray,
+              signs: tuple[int, int, int]) -> np.ndarray:
+    """Ball-joint target quaternions (n, 4): about y, then x, then z (intrinsic)."""
+    r = np.deg2rad
+    qy = _quat_axis(1, signs[0] * r(np.atleast_1d(flex_deg)))
+    qx = _quat_axis(0, signs[1] * r(np.atleast_1d(abd_deg)))
+    qz = _quat_axis(2, signs[2] * r(np.atleast_1d(rot_deg)))
+    return _quat_mul(_quat_mul(qy, qx), qz)
+
+
+@dataclass(frozen=True)
+class StrokeTables:
+    """Sampled joint targets over one cycle, in the swimmer's joint order."""
+
+    #: targets (nsamp, nqj): hinge angles [rad], ball quaternions
+    q: np.ndarray
+    #: phase derivatives (nsamp, nvj): hinge [rad/cycle], ball local angular velocity
+    #: [rad/cycle]
+    v: np.ndarray
+    #: the stroke they came from
+    stroke: Stroke
+
+
+def stroke_tables(stroke: Stroke, joints: JointInfo, nsamp: int = 240) -> StrokeTables:
+    """Sample ``stroke`` into per-joint target tables for :func:`flapsim.swim.pd.pd_controls`."""
+    phase = np.arange(nsamp) / nsamp
+    by_joint: dict[str, np.ndarray] = {}  # mujoco joint -> (nsamp, 1 or 4)
+    for joint, spec in ANATOMY.items():
+        if spec[0] == "ball":
+            _, mj, dofs, signs = spec
+            ang = [stroke.curve(f"{joint}.{d}", phase) for d in dofs]
+            q = ball_quat(*ang, signs)
+            for i in range(1, nsamp):  # one hemisphere, so that nlerp between samples works
+                if q[i] @ q[i - 1] < 0:
+                    q[i] = -q[i]
+            by_joint[mj] = q
+        else:
+            for dof, mj in spec[1].items():
+                by_joint[mj] = np.deg2rad(stroke.curve(f"{joint}.{dof}", phase))[:, None]
+    missing = [n for n in joints.names if n not in by_joint]
+    if missing:
+        raise InputError(f"stroke tables: no anatomy for joints {missing}")
+    qcols, vcols = [], []
+    for name in joints.names:
+        tab = by_joint[name]
+        qcols.append(tab)
+        if tab.shape[1] == 1:
+            vcols.append((np.roll(tab, -1, 0) - np.roll(tab, 1, 0)) * (nsamp / 2.0))
+        else:
+            # local angular velocity: 2 vec(conj(q) dq/dphase), central differences
+            dq = (np.roll(tab, -1, 0) - np.roll(tab, 1, 0)) * (nsamp / 2.0)
+            # hemisphere jumps at the wrap
+            fix = np.einsum("ij,ij->i", np.roll(tab, -1, 0), np.roll(tab, 1, 0)) < 0
+            if np.any(fix):
+                nxt = np.roll(tab, -1, 0)
+                nxt[fix] *= -1
+                dq = (nxt - np.roll(tab, 1, 0)) * (nsamp / 2.0)
+            conj = tab * np.array([1, -1, -1, -1])
+            vcols.append(2.0 * _quat_mul(conj, dq)[:, 1:])
+    return StrokeTables(np.ascontiguousarray(np.hstack(qcols)),
+                        np.ascontiguousarray(np.hstack(vcols)), stroke)
+
+
+def pose_at(tables: StrokeTables, phase: float) -> np.ndarray:
+    """Target non-root qpos at a phase (nearest sample; for initial poses and plots)."""
+    n = tables.q.shape[0]
+    return tables.q[int(round((phase % 1.0) * n)) % n].copy()
