@@ -4,8 +4,8 @@
 
 ``(+)`` applies the joint-space displacement with ``mj_integratePos`` (hinges add, the
 floating root's quaternion stays unit). Each component's shape ``R N u_i`` comes from
-:class:`flapsim.modal.analysis.ModalAnalysis` (max-normalised: amplitude 1 moves the
-most-moving joint by 1 rad) with the sign the heuristics fixed.
+:class:`flapsim.modal.analysis.ModalAnalysis`, normalised and signed by the caller (the
+gaits: largest rotation 1 rad, sign fixed by the heuristics).
 
 Soft joint limits (the paper's): a joint that passes its limit by ``d`` is pulled back
 by ``d^2 / (d + dtheta_soft)``, so it ends at ``limit + d dtheta_soft / (d + dtheta_soft)``:

@@ -99,7 +99,7 @@ class ModeBrowser:
                                           opacity=float(model.geom_rgba[g, 3]), smooth_shading=True)
             self.actors.append((g, actor))
         self._ground()
-        used_txt = ", ".join(f"{c.mode if c.mode >= 0 else 'bounce'} ({c.label.split()[0]})"
+        used_txt = ", ".join(f"{c.mode} {c.label.split()[0]}" if c.mode >= 0 else "bounce"
                              for c in self.components if c.amplitude)
         self.plotter.add_text(f"{plan.gait.name}: modes {used_txt}", font_size=8,
                               position="upper_edge")

@@ -16,8 +16,13 @@ bend and foot lift a quarter cycle later (90 deg: they peak mid-swing). A term's
 Trot: hind-left with front-right (G, F with sign -1, same phases as B, A). Amble (a
 lateral-sequence four-beat gait): each front foot a quarter cycle behind the hind foot of
 its side, so G(right) at 90 deg and F(left) at 0 deg. The paper's amplitudes are in its
-own unstated normalisation; ours multiply max-normalised shapes (1 = 1 rad on the
-most-moving joint), so equal numbers are not equal motions.
+own unstated normalisation; ours multiply shapes normalised so their largest rotation,
+the floating root's included, is 1 rad (:func:`rotation_normalized_shape`), so equal
+numbers are not equal motions. The hand-composed gallop and jumping jacks keep the
+paper's phases and frequencies; their amplitudes are ours (the paper's a6 = 1 on our
+dog's first mode pitches the trunk by 1 rad), and the jumping jack's beta is +0.3 where
+the paper's is -0.3: our leg-spread sign is fixed (positive = legs apart), theirs is not
+stated, and -0.3 would cross the legs.
 """
 
 from __future__ import annotations
@@ -55,7 +60,8 @@ class GaitTerm:
     category: str
     """Heuristic category (A-G, H, P, J, K) or 'bounce' (rigid vertical motion)."""
     amplitude: float
-    """alpha (max-normalised shape; for 'bounce', units of 0.1 m of vertical foot motion)."""
+    """alpha (shape with largest rotation 1 rad; for 'bounce', units of 0.1 m of root
+    vertical motion)."""
     phase_deg: float
     """gamma, degrees."""
     freq_hz: float = 2.0
@@ -114,7 +120,7 @@ GAITS: dict[str, Gait] = {
              description="lateral four-beat: each front foot a quarter cycle after its hind foot",
              kind="quadruped"),
         Gait("gallop", "dog", None,
-             (_t("bounce", 0.2, 0), _t("P", 1.0, 90), _t("H", 1.0, 0), _t("B", 0.2, 90),
+             (_t("bounce", 0.2, 0), _t("P", 0.3, 90), _t("H", 0.3, 0), _t("B", 0.2, 90),
               _t("G", 0.2, 90, sign=-1)),
              "by hand", "a4=.2 g0, a6=1 g90, a8=1 g0, a10=.2 g90, a11=.7 g90, a22=1 g90, 2 Hz",
              description="bound (P) and gather/stretch (H) in quadrature, a small left lead",
@@ -127,7 +133,8 @@ GAITS: dict[str, Gait] = {
              "a4=.75 g0, a16=.75 g0, a24=.75 g0, 2 Hz",
              description="bounce (rigid) with synchronous knee bend and foot lift"),
         Gait("jumping_jacks", "human", "tpose",
-             JUMP + (_t("J", 0.35, 45, 1.0, beta=-0.3), _t("K", 0.95, 45, 1.0)),
+             (_t("bounce", 0.75, 0), _t("D", 0.3, 180), _t("J", 0.3, 45, 1.0, beta=0.3),
+              _t("K", 0.95, 45, 1.0)),
              "by hand", "a4=.75 g0 2Hz, a7=.35 g.79 1Hz b7=-.3, a10=.95 g.79 1Hz, a16, a24=.75 g0 2Hz",
              description="jump plus leg spread (J) and arm raise (K) at half the rate"),
         Gait("run_head", "human", "run", (_t("B", 0.5, 0), _t("A", 0.5, 90), _t("C", 0.5, 90)),

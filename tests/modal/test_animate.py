@@ -102,3 +102,25 @@ def test_cli_tune_stiffness_option(tmp_path):
     assert res["stiffness_scale"] == tun["scale"]
     held = [t for t in tun["trials"] if t["scale"] == tun["scale"]][0]
     assert held["holds"] and held["max_dev_deg"] <= 10.0
+
+
+EXPECTED = {
+    # Heuristic categories each Fig. 3 gait must use (section 4.3; gallop and jumping
+    # jacks were composed by hand in the paper, ours use the extra categories P, J, K).
+    "trot": {"A", "B", "F", "G"}, "amble": {"A", "B", "F", "G"},
+    "gallop": {"bounce", "P", "B", "G"}, "walk": {"A", "B"}, "run": {"A", "B"},
+    "jump": {"bounce", "D", "E"}, "jumping_jacks": {"bounce", "D", "J", "K"},
+    "run_head": {"A", "B"}, "push_cart": {"A", "B"},
+}
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_every_fig3_gait_runs_from_the_cli(tmp_path, name):
+    out = tmp_path / "g.json"
+    assert main(["animate", "--gait", name, "--seconds", "0.2", "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    cats = {c for ch in res["chosen"] for c in ch["categories"]}
+    assert EXPECTED[name] <= cats
+    assert set(GAITS) == set(EXPECTED)
+    # Soft limits: nothing past a limit by more than dtheta_soft (5 deg default).
+    assert res["max_limit_overshoot_deg"] < 5.0
