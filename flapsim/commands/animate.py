@@ -37,6 +37,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--npz", metavar="PATH", help="write the joint trajectory (times, qpos)")
     p.add_argument("--video", metavar="PATH", help="write an .mp4 or .gif of the animation")
     p.add_argument("--bvh", metavar="PATH", help="write the animation as BVH (cm, z up)")
+    p.add_argument("--sheet", metavar="PNG",
+                   help="write an offscreen contact sheet of one cycle (mode browser view)")
+    p.add_argument("--browse", action="store_true",
+                   help="open the interactive mode browser (sliders per mode; needs a display)")
 
 
 def _list() -> dict:
@@ -71,6 +75,8 @@ def run(args: argparse.Namespace) -> dict:
         from flapsim.modal.video import check_video_path
 
         check_video_path(args.video)
+    if args.sheet and not args.sheet.lower().endswith(".png"):
+        raise InputError(f"--sheet {args.sheet} must end in .png")
     spec = args.model or g.model
     if spec in MODELS and spec != g.model and not (spec == "human_cart" and g.model == "human"):
         raise InputError(f"gait {g.name!r} is for --model {g.model}, not {spec}")
@@ -155,12 +161,27 @@ def run(args: argparse.Namespace) -> dict:
         ch = write_bvh(args.bvh, model, anim.qpos, 1.0 / args.fps)
         print(f"BVH ({ch} channels) -> {args.bvh}")
         out["bvh"] = args.bvh
+    if args.sheet:
+        from flapsim.modal.browser import contact_sheet
+
+        info = contact_sheet(plan, model, args.sheet)
+        print(f"contact sheet ({info['frames']} frames of one {info['period_s']:.2g} s cycle) "
+              f"-> {args.sheet}")
+        out["sheet"] = args.sheet
     if args.video:
         from flapsim.modal.video import render_poses
 
         frames = render_poses(model, list(anim.qpos), args.video, fps=args.fps, track=True)
         print(f"video ({frames} frames) -> {args.video}")
         out["video"] = args.video
+    if args.browse:
+        import os
+
+        if not os.environ.get("DISPLAY"):
+            raise InputError("--browse needs a display (DISPLAY is not set); use --sheet PNG")
+        from flapsim.modal.browser import ModeBrowser
+
+        ModeBrowser(plan, model).show()
     return out
 
 
