@@ -130,3 +130,17 @@ def test_projection_closes_the_loop_at_finite_amplitude():
     # Gauss-Newton from a ~mm first-order error converges quadratically: 1e-8 m is far
     # below anything visible and far above round-off.
     assert anim.constraint_residual < 1e-8
+
+
+def test_missing_labels_are_one_line_errors(tmp_path):
+    # A creature without labelled feet/knees cannot be scored; the CLI says which
+    # labels to add and exits with status 2 (user error), writing nothing.
+    from flapsim.cli import main
+
+    path = tmp_path / "blob.xml"
+    path.write_text("""<mujoco><worldbody><body pos="0 0 1"><freejoint/><geom size="0.1"/>
+      <body pos="0 0 0.2"><joint name="j" axis="0 1 0" stiffness="5" range="-1 1"/>
+      <geom size="0.05"/></body></body></worldbody></mujoco>""")
+    out = tmp_path / "r.json"
+    assert main(["animate", "--gait", "walk", "--model", str(path), "--json", str(out)]) == 2
+    assert not out.exists()
