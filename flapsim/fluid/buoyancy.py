@@ -37,7 +37,7 @@ from numba import njit
 
 from flapsim.errors import InputError, ModelError
 from flapsim.sim.callbacks import CompiledProvider, Registration, register, register_kernel
-from flapsim.sim.wrench import add_force
+from flapsim.sim.wrench import add_force, body_point
 
 METHODS = ("exact", "linear")
 _OUT = 4  # floats reported per ellipsoid: submerged volume, centre of buoyancy xyz
@@ -108,12 +108,8 @@ def buoyancy_kernel(w, xpos, xmat, ebody, ecenter, erot, esemi, params, out):
     for i in range(ebody.size):
         b = ebody[i]
         m = 9 * b
-        lx = ecenter[3 * i]
-        ly = ecenter[3 * i + 1]
-        lz = ecenter[3 * i + 2]
-        cx = xpos[3 * b] + xmat[m] * lx + xmat[m + 1] * ly + xmat[m + 2] * lz
-        cy = xpos[3 * b + 1] + xmat[m + 3] * lx + xmat[m + 4] * ly + xmat[m + 5] * lz
-        cz = xpos[3 * b + 2] + xmat[m + 6] * lx + xmat[m + 7] * ly + xmat[m + 8] * lz
+        cx, cy, cz = body_point(xpos, xmat, b, ecenter[3 * i], ecenter[3 * i + 1],
+                                ecenter[3 * i + 2])
         # world principal axes A = xmat @ erot (columns); only the products needed below
         r = 9 * i
         sa = esemi[3 * i]

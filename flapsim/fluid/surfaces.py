@@ -48,7 +48,7 @@ from flapsim.sim.callbacks import (
     register_kernel,
     time_view,
 )
-from flapsim.sim.wrench import add_force, map_wrenches
+from flapsim.sim.wrench import add_force, body_point, body_vector, map_wrenches
 
 RECORD = 16  # floats recorded per polygon by evaluate(): see SurfaceReport
 
@@ -297,13 +297,7 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
     half_seg = 0.5 * (nsamp - 1)
     for i in range(pbody.size):
         b = pbody[i]
-        m = 9 * b
-        lx = pc[3 * i]
-        ly = pc[3 * i + 1]
-        lz = pc[3 * i + 2]
-        px = xpos[3 * b] + xmat[m] * lx + xmat[m + 1] * ly + xmat[m + 2] * lz
-        py = xpos[3 * b + 1] + xmat[m + 3] * lx + xmat[m + 4] * ly + xmat[m + 5] * lz
-        pz = xpos[3 * b + 2] + xmat[m + 6] * lx + xmat[m + 7] * ly + xmat[m + 8] * lz
+        px, py, pz = body_point(xpos, xmat, b, pc[3 * i], pc[3 * i + 1], pc[3 * i + 2])
         if record:
             for k in range(16):
                 rec[16 * i + k] = 0.0
@@ -311,12 +305,7 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             rec[16 * i + 14] = py
             rec[16 * i + 15] = pz
         # world normal and forward
-        a = pn[3 * i]
-        c = pn[3 * i + 1]
-        e = pn[3 * i + 2]
-        nx = xmat[m] * a + xmat[m + 1] * c + xmat[m + 2] * e
-        ny = xmat[m + 3] * a + xmat[m + 4] * c + xmat[m + 5] * e
-        nz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
+        nx, ny, nz = body_vector(xmat, b, pn[3 * i], pn[3 * i + 1], pn[3 * i + 2])
         # submerged fraction under a free surface
         frac = 1.0
         if zs < 1e300:
@@ -353,9 +342,7 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         area = parea[i] * frac
         # split: drag/lift part (in the N-F plane, or everything) and friction part
         if has_f:
-            fx = xmat[m] * a + xmat[m + 1] * c + xmat[m + 2] * e
-            fy = xmat[m + 3] * a + xmat[m + 4] * c + xmat[m + 5] * e
-            fz = xmat[m + 6] * a + xmat[m + 7] * c + xmat[m + 8] * e
+            fx, fy, fz = body_vector(xmat, b, a, c, e)
             sx = ny * fz - nz * fy
             sy = nz * fx - nx * fz
             sz = nx * fy - ny * fx

@@ -64,3 +64,19 @@ def map_wrenches(w, nbody, nv, body_parentid, body_rootid, dof_bodyid, cdof, sub
             ox * w[o] + oy * w[o + 1] + oz * w[o + 2] + vx * w[o + 3] + vy * w[o + 4] + vz * w[o + 5]
         )
     return 0
+
+
+@njit(cache=True, inline="always")
+def body_vector(xmat, b, lx, ly, lz):
+    """Body-frame vector (lx, ly, lz) of body ``b`` in world coordinates (flat xmat)."""
+    m = 9 * b
+    return (xmat[m] * lx + xmat[m + 1] * ly + xmat[m + 2] * lz,
+            xmat[m + 3] * lx + xmat[m + 4] * ly + xmat[m + 5] * lz,
+            xmat[m + 6] * lx + xmat[m + 7] * ly + xmat[m + 8] * lz)
+
+
+@njit(cache=True, inline="always")
+def body_point(xpos, xmat, b, lx, ly, lz):
+    """Body-frame point (lx, ly, lz) of body ``b`` in world coordinates (flat arrays)."""
+    vx, vy, vz = body_vector(xmat, b, lx, ly, lz)
+    return xpos[3 * b] + vx, xpos[3 * b + 1] + vy, xpos[3 * b + 2] + vz
