@@ -10,7 +10,7 @@ from flapsim.errors import DataFileError, InputError
 from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.simulate import swim
-from flapsim.swim.strokes import STROKES, Stroke, load_stroke, stroke_tables
+from flapsim.swim.strokes import STROKES, Stroke, _pairs, _shifted, load_stroke, stroke_tables
 
 
 @pytest.mark.parametrize("name", STROKES)
@@ -86,3 +86,32 @@ def test_faster_stroke_rate_is_honoured():
     r = swim("breaststroke", 4.0, rate_hz=1.0)
     assert r.rate_hz == 1.0
     assert r.cycles == 4  # the phase clock: exactly one cycle per second
+
+
+def test_whole_turn_keys_are_periodic_up_to_the_turn():
+    key = _pairs("t", [[0, 178], [0.25, 95], [0.47, 0], [0.75, -120], [1.0, -182]])
+    assert key[2] == -360.0
+    st = Stroke("t", 1.0, "prone", "pchip", {"a.b": key, "c.d": _shifted(key, 0.5)})
+    x = np.linspace(0, 1, 2001)
+    a = st.curve("a.b", x)
+    # continuous across the cycle end once the turn is taken off (no 360 deg jump):
+    # just before phase 1 the angle is ~ f(0) - 360
+    assert abs(a[-2] - (a[0] - 360.0)) < 1.0
+    assert np.abs(np.diff(a[:-1])).max() < 1.0
+    # the mirrored copy is the same curve half a cycle later, up to whole turns
+    c = st.curve("c.d", x)
+    d = np.mod(c - st.curve("a.b", x - 0.5) + 180.0, 360.0) - 180.0
+    assert np.allclose(d, 0.0, atol=1e-9)
+
+
+def test_bad_stroke_files_are_one_line_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = 'x'\n[keys.shoulder_l]\nflex = [[0.0, 0], [1.0, 100]]\n")
+    with pytest.raises(DataFileError, match="whole turns"):
+        load_stroke(str(bad))
+    bad.write_text("name = 'x'\n[keys.shoulder_l]\nwiggle = [[0.0, 0]]\n")
+    with pytest.raises(DataFileError, match="unknown dof"):
+        load_stroke(str(bad))
+    bad.write_text("name = [\n")
+    with pytest.raises(DataFileError, match="not valid TOML"):
+        load_stroke(str(bad))

@@ -9,10 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import DataFileError
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.simulate import swim
-from flapsim.swim.strokes import Stroke, _pairs, _shifted, load_stroke
 
 
 def com_heights(params: SwimmerParams, seconds: float) -> np.ndarray:
@@ -84,32 +82,3 @@ def test_treading_stays_in_place():
     # issue asks for the head above water, which the model does not reach (README)
     assert r["head_horizontal_drift_max_m"] < 0.3
     assert r["head_height_mean_m"] > -0.1
-
-
-def test_whole_turn_keys_are_periodic_up_to_the_turn():
-    key = _pairs("t", [[0, 178], [0.25, 95], [0.47, 0], [0.75, -120], [1.0, -182]])
-    assert key[2] == -360.0
-    st = Stroke("t", 1.0, "prone", "pchip", {"a.b": key, "c.d": _shifted(key, 0.5)})
-    x = np.linspace(0, 1, 2001)
-    a = st.curve("a.b", x)
-    # continuous across the cycle end once the turn is taken off (no 360 deg jump):
-    # just before phase 1 the angle is ~ f(0) - 360
-    assert abs(a[-2] - (a[0] - 360.0)) < 1.0
-    assert np.abs(np.diff(a[:-1])).max() < 1.0
-    # the mirrored copy is the same curve half a cycle later, up to whole turns
-    c = st.curve("c.d", x)
-    d = np.mod(c - st.curve("a.b", x - 0.5) + 180.0, 360.0) - 180.0
-    assert np.allclose(d, 0.0, atol=1e-9)
-
-
-def test_bad_stroke_files_are_one_line_errors(tmp_path):
-    bad = tmp_path / "bad.toml"
-    bad.write_text("name = 'x'\n[keys.shoulder_l]\nflex = [[0.0, 0], [1.0, 100]]\n")
-    with pytest.raises(DataFileError, match="whole turns"):
-        load_stroke(str(bad))
-    bad.write_text("name = 'x'\n[keys.shoulder_l]\nwiggle = [[0.0, 0]]\n")
-    with pytest.raises(DataFileError, match="unknown dof"):
-        load_stroke(str(bad))
-    bad.write_text("name = [\n")
-    with pytest.raises(DataFileError, match="not valid TOML"):
-        load_stroke(str(bad))
