@@ -1,7 +1,14 @@
-"""Control layers. Layer 1, the basic stroke layer: cycle through a stroke's keyframed
-pose graph at a stroke rate and drive the PD muscles towards the interpolated pose.
+"""Control layers.
 
-(The paper's per-cycle perturbation and continuous layers are not implemented yet.)
+Layer 1, the basic stroke layer (:class:`BasicStrokeLayer`): cycle through a stroke's
+keyframed pose graph at a stroke rate and drive the PD muscles towards the
+interpolated pose.
+
+On top of it, :class:`FeedbackLayer` blends the stroke's named perturbations (offset
+cycles, see :mod:`flapsim.swim.strokes`) into the targets with weights that feedback
+rules set from the swimmer's state 50 times a second: the paper's continuous layer,
+used by treading water to stay upright and in place. (The paper's per-cycle layer
+with pre-simulated weight tables, and target following, are not implemented yet.)
 """
 
 from __future__ import annotations
@@ -10,6 +17,7 @@ import mujoco
 import numpy as np
 
 from flapsim.errors import InputError
+from flapsim.swim.feedback import signals, weight
 from flapsim.swim.model import Swimmer
 from flapsim.swim.pd import KP, kind_of, pd_controls
 from flapsim.swim.strokes import Stroke, StrokeTables, stroke_tables
@@ -62,3 +70,84 @@ class BasicStrokeLayer:
         if self.phase >= 1.0:
             self.phase -= 1.0
             self.cycles += 1
+
+
+class FeedbackLayer:
+    """Continuous perturbations: call :meth:`update` at the control rate (and the basic
+    layer's :meth:`BasicStrokeLayer.apply` before every step as usual).
+
+    Tables for each perturbation at weight +1 and -1 are sampled once; an update blends
+    them into the basic layer's targets (quaternions renormalised), so it costs a few
+    array operations, not a re-interpolation.
+    """
+
+    def __init__(self, basic: BasicStrokeLayer, reference: np.ndarray | None = None) -> None:
+        self.basic = basic
+        sw = basic.swimmer
+        st = basic.stroke
+        if not st.perturbations:
+            raise InputError(f"stroke {st.name!r} has no [perturb.*] sections to feed back")
+        self.names = list(st.perturbations)
+        base = basic.tables
+        self._base_q, self._base_v = base.q.copy(), base.v.copy()
+        self._dq: list[tuple[np.ndarray, np.ndarray]] = []
+        self._dv: list[tuple[np.ndarray, np.ndarray]] = []
+        n = base.q.shape[0]
+        for name in self.names:
+            plus = stroke_tables(st, sw.joints, n, {name: 1.0})
+            minus = stroke_tables(st, sw.joints, n, {name: -1.0})
+            # one hemisphere with the base, so that the blend is a short nlerp
+            for t in (plus, minus):
+                for a in self._ball_cols(sw):
+                    flip = np.einsum("ij,ij->i", t.q[:, a:a + 4], base.q[:, a:a + 4]) < 0
+                    t.q[flip, a:a + 4] *= -1
+            self._dq.append((plus.q - base.q, minus.q - base.q))
+            self._dv.append((plus.v - base.v, minus.v - base.v))
+        self._balls = self._ball_cols(sw)
+        self.trunk = sw.body["thorax"]
+        self.root = sw.body["pelvis"]
+        self.reference = (np.asarray(reference, dtype=float)[:2].copy() if reference is not None
+                          else sw.com()[:2])
+        self.weights = {k: 0.0 for k in self.names}
+        self.history: list[list[float]] = []
+
+    @staticmethod
+    def _ball_cols(sw: Swimmer) -> list[int]:
+        cols, c = [], 0
+        for t in sw.joints.types:
+            if t == 1:
+                cols.append(c)
+            c += 4 if t == 1 else 1
+        return cols
+
+    def update(self, data: mujoco.MjData) -> dict[str, float]:
+        """Measure the signals, set each perturbation's weight, blend the targets."""
+        sw = self.basic.swimmer
+        values = signals(sw.model, data, self.trunk, self.root, self.reference)
+        q = self._base_q.copy()
+        v = self._base_v.copy()
+        for i, name in enumerate(self.names):
+            p = self.basic.stroke.perturbations[name]
+            w = weight(p.gains, p.bias, values)
+            self.weights[name] = w
+            if w > 0:
+                q += w * self._dq[i][0]
+                v += w * self._dv[i][0]
+            elif w < 0:
+                q -= w * self._dq[i][1]
+                v -= w * self._dv[i][1]
+        for a in self._balls:
+            q[:, a:a + 4] /= np.linalg.norm(q[:, a:a + 4], axis=1, keepdims=True)
+        self.basic._tq[:] = q.reshape(-1)
+        self.basic._tv[:] = v.reshape(-1)
+        self.history.append([self.weights[k] for k in self.names])
+        return self.weights
+
+    def summary(self) -> dict:
+        """Per perturbation: mean weight, mean |weight|, fraction of time saturated."""
+        if not self.history:
+            return {}
+        h = np.asarray(self.history)
+        return {name: {"mean": float(h[:, i].mean()), "mean_abs": float(np.abs(h[:, i]).mean()),
+                       "saturated_fraction": float((np.abs(h[:, i]) >= 1.0 - 1e-12).mean())}
+                for i, name in enumerate(self.names)}

@@ -15,7 +15,7 @@ import numpy as np
 from flapsim.errors import SimulationError
 from flapsim.fluid.flow import FlowField
 from flapsim.sim.callbacks import DISPATCHER
-from flapsim.swim.layers import BasicStrokeLayer
+from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.strokes import Stroke, load_stroke
 
@@ -38,6 +38,11 @@ class SwimResult:
     head: np.ndarray = field(repr=False)  # (n, 3) head box centre
     wall_s: float = 0.0
     water_level: float = 0.0
+    #: muscle power at each sample [W]: (motor torque - joint damping qdot) . qdot summed
+    #: over the joints (the damping is the PD's velocity term, see flapsim.swim.pd)
+    power: np.ndarray = field(default=None, repr=False)
+    #: the feedback layer's weights (see FeedbackLayer.summary); None = basic layer only
+    feedback: dict | None = None
     frames: list = field(default_factory=list, repr=False)
 
     def _steady(self) -> np.ndarray:
@@ -90,6 +95,10 @@ class SwimResult:
             "com_height_mean_m": float(com_z[sel].mean()),
             "com_height_end_m": float(com_z[-1]),
             "lateral_drift_m": float(self.com[-1, 1] - self.com[0, 1]),
+            "muscle_power_mean_w": float(self.power[sel].mean()) if self.power is not None
+            else None,
+            "layers": ["basic stroke"] + (["feedback"] if self.feedback is not None else []),
+            "feedback_weights": self.feedback,
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
             "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
@@ -107,22 +116,27 @@ def swim(
     video_size: tuple[int, int] = (480, 640),
     progress: bool = False,
     swimmer: Swimmer | None = None,
+    feedback: bool = True,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
     ``video_fps`` > 0 also renders frames (offscreen) into ``result.frames``.
+    ``feedback``: run the stroke's feedback rules (its ``[perturb.*]`` sections, if
+    any) at 50 Hz; False = the basic stroke layer alone.
     """
     st = stroke if isinstance(stroke, Stroke) else load_stroke(stroke)
     sw = swimmer or Swimmer(params, flow)
     layer = BasicStrokeLayer(sw, st, rate_hz)
     sw.reset(st.posture, qpos_joints=layer.start_pose(0.0))
     sw.set_current(np.asarray(current, dtype=float))
+    fb = FeedbackLayer(layer) if (feedback and st.perturbations) else None
     m, d = sw.model, sw.data
     dt = m.opt.timestep
     nsteps = int(round(seconds / dt))
     every = max(1, int(round(1.0 / (SAMPLE_HZ * dt))))
     control_every = max(1, int(round(0.02 / dt)))  # swimmer-induced flow at 50 Hz
-    times, com, head = [], [], []
+    times, com, head, power = [], [], [], []
+    damp = m.dof_damping[6:].copy()
     head_gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head")
     pelvis = sw.body["pelvis"]
     renderer = None
@@ -138,7 +152,7 @@ def swim(
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=round(seconds, 3), unit="sim s", desc=st.name, leave=False)
+        bar = tqdm(total=nsteps, unit=" sim s", unit_scale=dt, desc=st.name, leave=False)
     t_wall = time.perf_counter()
     try:
         with sw:
@@ -148,6 +162,8 @@ def swim(
                     times.append(d.time)
                     com.append(d.subtree_com[pelvis].copy())
                     head.append(d.geom_xpos[head_gid].copy())
+                    qd = d.qvel[6:]
+                    power.append(float((d.qfrc_actuator[6:] - damp * qd) @ qd))
                 if renderer is not None and i % frame_every == 0:
                     cam.lookat[:] = d.subtree_com[pelvis]
                     renderer.update_scene(d, camera=cam)
@@ -156,8 +172,10 @@ def swim(
                     break
                 if i % control_every == 0:
                     sw.update_flow()
+                    if fb is not None:
+                        fb.update(d)
                     if bar is not None and i:
-                        bar.update(round(control_every * dt, 6))
+                        bar.update(control_every)
                 layer.apply(d, dt)
                 mujoco.mj_step(m, d)
                 if i % 500 == 0:
@@ -170,7 +188,9 @@ def swim(
             bar.close()
     wall = time.perf_counter() - t_wall
     return SwimResult(st.name, nsteps * dt, layer.rate_hz, layer.cycles, np.asarray(times),
-                      np.asarray(com), np.asarray(head), wall, sw.params.water_level, frames)
+                      np.asarray(com), np.asarray(head), wall, sw.params.water_level,
+                      power=np.asarray(power), frames=frames,
+                      feedback=fb.summary() if fb is not None else None)
 
 
 def _check(m: mujoco.MjModel, d: mujoco.MjData) -> None:

@@ -18,6 +18,16 @@ does ("key poses are defined for each joint separately"), in degrees::
     [mirror]                  # copy a joint to the other side, shifted in phase
     shoulder_r = { from = "shoulder_l", shift = 0.0 }
 
+    [perturb.lean]            # optional: a perturbation the feedback layer weighs
+    description = "scull further forwards (w > 0) or backwards (w < 0)"
+    feedback = { tilt_x = 6.0 }   # w = bias + sum(gain * signal), clipped to -1..1
+    [perturb.lean.keys.shoulder_l]  # offsets [deg] added to the keys at weight w = 1
+    flex = [[0.0, 10], [0.5, -10]]
+
+Perturbations are the paper's layers 2-3: named offset cycles (mirrored like the keys)
+blended into the stroke with weights that a feedback rule sets from the swimmer's
+state (signals: :data:`flapsim.swim.feedback.SIGNALS`).
+
 Anatomical dofs (standing frame: x anterior, y left, z up; positive as named):
 lumbar/thoracic/neck: flex (forward), bend (to the left), twist (to the left);
 shoulder_*/hip_*: flex (limb forward), abd (limb out), rot (internal rotation);
@@ -30,7 +40,7 @@ A ball joint's target is the rotation flex (about the side axis), then abduction
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -71,6 +81,20 @@ def dof_names() -> list[str]:
 
 
 @dataclass(frozen=True)
+class Perturbation:
+    """A named offset cycle [deg per dof] that a feedback layer blends into a stroke."""
+
+    name: str
+    #: ``joint.dof`` -> keyframes as in :attr:`Stroke.keys` (offsets, mirrored)
+    keys: dict
+    #: feedback rule: signal name -> gain (weight per unit signal)
+    gains: dict = field(default_factory=dict)
+    #: weight with every signal at zero
+    bias: float = 0.0
+    description: str = ""
+
+
+@dataclass(frozen=True)
 class Stroke:
     """A parsed stroke file: one periodic curve (degrees over phase) per anatomical dof."""
 
@@ -89,24 +113,37 @@ class Stroke:
     description: str = ""
     #: file it came from
     path: str = ""
+    #: named perturbations (layers 2-3), empty for a plain keyframed stroke
+    perturbations: dict = field(default_factory=dict)
 
     @property
     def rate_hz(self) -> float:
         """Default stroke rate [cycles/s]."""
         return 1.0 / self.period_s
 
-    def curve(self, dof: str, phase: np.ndarray) -> np.ndarray:
-        """Angle [deg] of ``joint.dof`` at the given phases (periodic)."""
-        ph, val, turn = _unpack(self.keys.get(dof, (np.zeros(1), np.zeros(1))))
-        x = np.mod(np.asarray(phase, dtype=float), 1.0)
-        if len(ph) == 1:
-            return np.full_like(x, val[0])
-        # periodic up to whole turns: f(x + 1) = f(x) + turn (a limb circling its joint)
-        xs = np.concatenate([ph - 1.0, ph, ph + 1.0])
-        ys = np.concatenate([val - turn, val, val + turn])
-        if self.interpolation == "linear":
-            return np.interp(x, xs, ys)
-        return PchipInterpolator(xs, ys)(x)
+    def curve(self, dof: str, phase: np.ndarray, weights: dict | None = None) -> np.ndarray:
+        """Angle [deg] of ``joint.dof`` at the given phases (periodic), plus each named
+        perturbation's offset times its weight in ``weights``."""
+        out = _curve(self.keys.get(dof), phase, self.interpolation)
+        for name, w in (weights or {}).items():
+            if w != 0.0:
+                out = out + w * _curve(self.perturbations[name].keys.get(dof), phase,
+                                       self.interpolation)
+        return out
+
+
+def _curve(key: tuple | None, phase: np.ndarray, interpolation: str) -> np.ndarray:
+    """A keyed periodic curve [deg] at ``phase``; zero where there are no keys."""
+    ph, val, turn = _unpack(key if key is not None else (np.zeros(1), np.zeros(1)))
+    x = np.mod(np.asarray(phase, dtype=float), 1.0)
+    if len(ph) == 1:
+        return np.full_like(x, val[0])
+    # periodic up to whole turns: f(x + 1) = f(x) + turn (a limb circling its joint)
+    xs = np.concatenate([ph - 1.0, ph, ph + 1.0])
+    ys = np.concatenate([val - turn, val, val + turn])
+    if interpolation == "linear":
+        return np.interp(x, xs, ys)
+    return PchipInterpolator(xs, ys)(x)
 
 
 def stroke_path(name_or_path: str) -> Path:
@@ -175,6 +212,12 @@ def load_stroke(name_or_path: str) -> Stroke:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise DataFileError(f"{path}: not valid TOML ({exc})") from None
+    return parse_stroke(raw, path)
+
+
+def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
+    """A :class:`Stroke` from the parsed contents of a stroke file (a dict laid out as
+    the TOML files are); ``path`` names it in error messages."""
     valid = set(dof_names())
     try:
         period = float(raw.get("period_s", 1.0))
@@ -188,22 +231,39 @@ def load_stroke(name_or_path: str) -> Stroke:
     interp = raw.get("interpolation", "pchip")
     if interp not in ("pchip", "linear"):
         raise DataFileError(f"{path}: interpolation must be 'pchip' or 'linear'")
-    keys: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    keys: dict[str, tuple] = {}
     for dof, value in raw.get("pose", {}).items():
         if dof not in valid:
             raise DataFileError(f"{path}: [pose] names unknown dof {dof!r}; valid: "
                                 f"{', '.join(sorted(valid))}")
         keys[dof] = (np.zeros(1), np.array([float(value)]))
-    for joint, dofs in raw.get("keys", {}).items():
+    mirror = raw.get("mirror", {})
+    keys = _parse_keys(raw.get("keys", {}), mirror, path, "keys", keys)
+    perturbations = {}
+    for name, spec in raw.get("perturb", {}).items():
+        perturbations[name] = _parse_perturbation(name, spec, mirror, path)
+    return Stroke(str(raw.get("name", Path(path).stem)), period, posture, interp, keys,
+                  str(raw.get("description", "")), str(path), perturbations)
+
+
+def _parse_keys(table: object, mirror: dict, path: str | Path, where: str,
+                initial: dict | None = None) -> dict:
+    """``[keys.<joint>]`` tables (over ``initial``, e.g. the [pose] entries), and the
+    mirrored joints, as ``joint.dof`` -> keys."""
+    valid = set(dof_names())
+    if not isinstance(table, dict):
+        raise DataFileError(f"{path}: [{where}] must be a table of joints")
+    keys: dict[str, tuple] = dict(initial or {})
+    for joint, dofs in table.items():
         if not isinstance(dofs, dict):
-            raise DataFileError(f"{path}: [keys.{joint}] must be a table of dofs")
+            raise DataFileError(f"{path}: [{where}.{joint}] must be a table of dofs")
         for dof, pairs in dofs.items():
             full = f"{joint}.{dof}"
             if full not in valid:
-                raise DataFileError(f"{path}: unknown dof {full!r}; valid: "
+                raise DataFileError(f"{path}: unknown dof {full!r} in [{where}]; valid: "
                                     f"{', '.join(sorted(valid))}")
-            keys[full] = _pairs(f"{path} keys.{full}", pairs)
-    for target, spec in raw.get("mirror", {}).items():
+            keys[full] = _pairs(f"{path} {where}.{full}", pairs)
+    for target, spec in mirror.items():
         src = spec.get("from") if isinstance(spec, dict) else None
         if target not in ANATOMY or src not in ANATOMY:
             raise DataFileError(f"{path}: mirror {target} = {spec!r} must name two joints")
@@ -211,8 +271,39 @@ def load_stroke(name_or_path: str) -> Stroke:
         for full in [k for k in list(keys) if k.startswith(src + ".")]:
             dof = full.split(".", 1)[1]
             keys[f"{target}.{dof}"] = _shifted(keys[full], shift)
-    return Stroke(str(raw.get("name", path.stem)), period, posture, interp, keys,
-                  str(raw.get("description", "")), str(path))
+    return keys
+
+
+def _parse_perturbation(name: str, spec: object, mirror: dict, path: str | Path
+                        ) -> Perturbation:
+    from flapsim.swim.feedback import SIGNALS
+
+    where = f"perturb.{name}"
+    if not isinstance(spec, dict):
+        raise DataFileError(f"{path}: [{where}] must be a table")
+    unknown = set(spec) - {"keys", "feedback", "description"}
+    if unknown:
+        raise DataFileError(f"{path}: [{where}] has unknown entries {sorted(unknown)}; "
+                            "allowed: keys, feedback, description")
+    keys = _parse_keys(spec.get("keys", {}), mirror, path, f"{where}.keys")
+    if not keys:
+        raise DataFileError(f"{path}: [{where}] needs [{where}.keys.<joint>] offsets")
+    for full, key in keys.items():
+        if len(key) == 3 and key[2] != 0.0:
+            raise DataFileError(f"{path}: {where}.{full}: offsets cannot gain whole turns")
+    gains = dict(spec.get("feedback", {}))
+    try:
+        bias = float(gains.pop("bias", 0.0))
+        gains = {k: float(v) for k, v in gains.items()}
+    except (TypeError, ValueError):
+        raise DataFileError(f"{path}: {where}.feedback gains must be numbers") from None
+    bad = [k for k in gains if k not in SIGNALS]
+    if bad:
+        raise DataFileError(f"{path}: {where}.feedback names unknown signals {bad}; valid: "
+                            f"{', '.join(SIGNALS)} (and bias)")
+    if not all(np.isfinite(list(gains.values()) + [bias])):
+        raise DataFileError(f"{path}: {where}.feedback gains must be finite")
+    return Perturbation(name, keys, gains, bias, str(spec.get("description", "")))
 
 
 # -- joint targets ---------------------------------------------------------------------
@@ -257,14 +348,16 @@ class StrokeTables:
     stroke: Stroke
 
 
-def stroke_tables(stroke: Stroke, joints: JointInfo, nsamp: int = 240) -> StrokeTables:
-    """Sample ``stroke`` into per-joint target tables for :func:`flapsim.swim.pd.pd_controls`."""
+def stroke_tables(stroke: Stroke, joints: JointInfo, nsamp: int = 240,
+                  weights: dict | None = None) -> StrokeTables:
+    """Sample ``stroke`` (with its perturbations at ``weights``) into per-joint target
+    tables for :func:`flapsim.swim.pd.pd_controls`."""
     phase = np.arange(nsamp) / nsamp
     by_joint: dict[str, np.ndarray] = {}  # mujoco joint -> (nsamp, 1 or 4)
     for joint, spec in ANATOMY.items():
         if spec[0] == "ball":
             _, mj, dofs, signs = spec
-            ang = [stroke.curve(f"{joint}.{d}", phase) for d in dofs]
+            ang = [stroke.curve(f"{joint}.{d}", phase, weights) for d in dofs]
             q = ball_quat(*ang, signs)
             for i in range(1, nsamp):  # one hemisphere, so that nlerp between samples works
                 if q[i] @ q[i - 1] < 0:
@@ -272,7 +365,7 @@ def stroke_tables(stroke: Stroke, joints: JointInfo, nsamp: int = 240) -> Stroke
             by_joint[mj] = q
         else:
             for dof, mj in spec[1].items():
-                by_joint[mj] = np.deg2rad(stroke.curve(f"{joint}.{dof}", phase))[:, None]
+                by_joint[mj] = np.deg2rad(stroke.curve(f"{joint}.{dof}", phase, weights))[:, None]
     missing = [n for n in joints.names if n not in by_joint]
     if missing:
         raise InputError(f"stroke tables: no anatomy for joints {missing}")

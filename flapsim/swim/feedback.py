@@ -1,0 +1,46 @@
+"""State signals for the swimmer's feedback rules (the perturbation layers).
+
+Every signal is measured in the world frame, whose +x is the swimmer's initial heading
+(the simulation starts every stroke facing +x), relative to a reference point (the
+start position, or a target):
+
+* ``tilt_x``, ``tilt_y``: x and y components of the upper trunk's head-ward axis: the
+  sine of an upright swimmer's forward and leftward lean [-];
+* ``tilt_rate_x``, ``tilt_rate_y``: their time derivatives [1/s];
+* ``offset_x``, ``offset_y``: centre of mass minus the reference [m];
+* ``vel_x``, ``vel_y``: centre-of-mass velocity [m/s].
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+SIGNALS = ("tilt_x", "tilt_y", "tilt_rate_x", "tilt_rate_y", "offset_x", "offset_y",
+           "vel_x", "vel_y")
+
+
+def signals(model: mujoco.MjModel, data: mujoco.MjData, trunk: int, root: int,
+            reference: np.ndarray) -> dict[str, float]:
+    """The :data:`SIGNALS` for body ``trunk`` (tilt) and the subtree of ``root`` (centre
+    of mass) relative to ``reference`` (x, y) [m]. Needs positions and velocities
+    current (after a step or ``mj_forward``); computes subtree velocities itself."""
+    axis = data.xmat[trunk].reshape(3, 3)[:, 2]
+    # d(axis)/dt = omega x axis, omega = the trunk's world angular velocity
+    omega = data.cvel[trunk][:3]
+    rate = np.cross(omega, axis)
+    mujoco.mj_subtreeVel(model, data)
+    com = data.subtree_com[root]
+    vel = data.subtree_linvel[root]
+    return {
+        "tilt_x": float(axis[0]), "tilt_y": float(axis[1]),
+        "tilt_rate_x": float(rate[0]), "tilt_rate_y": float(rate[1]),
+        "offset_x": float(com[0] - reference[0]), "offset_y": float(com[1] - reference[1]),
+        "vel_x": float(vel[0]), "vel_y": float(vel[1]),
+    }
+
+
+def weight(gains: dict[str, float], bias: float, values: dict[str, float]) -> float:
+    """``bias + sum(gain * signal)`` clipped to [-1, 1]."""
+    w = bias + sum(g * values[k] for k, g in gains.items())
+    return float(min(1.0, max(-1.0, w)))

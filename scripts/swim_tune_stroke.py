@@ -1,0 +1,245 @@
+"""Tune a stroke's keyframes by pre-simulation (the layered-swimming paper found its
+per-cycle weight tables the same way: by simulating the swimmer and keeping what works).
+
+Only joint-angle keyframes move, each within a stated band around the hand-designed
+value and inside the joint's range; the body, the fluid coefficients, the stroke rate
+and the muscles' torque limits stay as they are. The objective is the forward speed
+over a short swim from rest, less penalties for sinking the head and for muscle power
+above a cap (so the optimiser cannot buy speed with superhuman effort).
+
+    python scripts/swim_tune_stroke.py crawl --generations 25 --out /tmp/crawl_tuned.toml
+
+The result is written as a stroke file (comments are not kept: copy the tuned numbers
+into the bundled file by hand, with the reason next to them). Resumable: every
+generation is checkpointed to ``--out`` + ``.state.npz``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import math
+import os
+import sys
+import time
+import tomllib
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from flapsim.io import atomic_path
+from flapsim.swim.strokes import parse_stroke, stroke_path
+
+# (kind, dof, index, half-width [deg]); kinds: "key" moves one keyframe value, "all"
+# shifts every key of a dof, "amp" scales a dof's keys about their mean (half-width as a
+# fraction)
+_CRAWL = (
+    [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd", "rot") for i in range(1, 6)]
+    + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 6)]
+    + [("key", "elbow_l.pronation", i, 30.0) for i in range(1, 6)]
+    + [("all", "neck.flex", 0, 20.0), ("all", "lumbar.flex", 0, 10.0),
+       ("amp", "hip_l.flex", 0, 0.5), ("all", "hip_l.flex", 0, 10.0),
+       ("amp", "knee_l.flex", 0, 0.5), ("all", "ankle_l.plantar", 0, 15.0),
+       ("amp", "thoracic.twist", 0, 0.8), ("period", "", 0, 0.2)]
+)
+_BREAST = (
+    [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd") for i in range(1, 6)]
+    + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 5)]
+    + [("key", "elbow_l.pronation", i, 30.0) for i in range(1, 4)]
+    + [("key", "hip_l.flex", i, 15.0) for i in range(2, 4)]
+    + [("key", "hip_l.abd", i, 15.0) for i in range(2, 4)]
+    + [("key", "hip_l.rot", i, 20.0) for i in range(2, 4)]
+    + [("key", "knee_l.flex", i, 25.0) for i in range(2, 4)]
+    + [("key", "ankle_l.plantar", i, 20.0) for i in range(2, 5)]
+    + [("all", "neck.flex", 0, 15.0), ("period", "", 0, 0.3)]
+    + [("key", "hip_l.flex", 4, 10.0), ("key", "knee_l.flex", 4, 10.0),
+       ("key", "shoulder_l.flex", 6, 10.0)]
+)
+# treading: every key of the arms' scull and the legs' kick
+_TREAD = (
+    [("all", "shoulder_l.flex", 0, 30.0), ("all", "shoulder_l.abd", 0, 30.0)]
+    + [("key", "shoulder_l.rot", i, 40.0) for i in range(2)]
+    + [("all", "elbow_l.flex", 0, 30.0)]
+    + [("key", "elbow_l.pronation", i, 35.0) for i in range(6)]
+    + [("key", f"hip_l.{d}", i, 30.0) for d in ("flex", "abd", "rot") for i in range(3)]
+    + [("key", "knee_l.flex", i, 35.0) for i in range(3)]
+    + [("key", "ankle_l.plantar", i, 25.0) for i in range(4)]
+    + [("all", "neck.flex", 0, 20.0), ("all", "lumbar.flex", 0, 20.0),
+       ("period", "", 0, 0.3)]
+)
+#: stroke period bounds [s]: the acceptance's human stroke rates (crawl 0.6-1.0 cycles/s,
+#: breaststroke 0.4-1.1); treading: 0.6-1.5 s (eggbeater ~1-1.7 cycles/s)
+PERIODS = {"crawl": (1.0, 1.67), "breaststroke": (0.91, 2.5), "treading": (0.6, 1.5)}
+
+#: stroke -> (parameters, objective): "speed" = forward speed, "float" = head height
+SPECS: dict[str, tuple[list[tuple[str, str, int, float]], str]] = {
+    "crawl": (_CRAWL, "speed"),
+    "breaststroke": (_BREAST, "speed"),
+    "treading": (_TREAD, "float"),
+}
+
+
+def _dof_keys(raw: dict, dof: str) -> list:
+    joint, name = dof.split(".")
+    keys = raw.setdefault("keys", {}).setdefault(joint, {})
+    if name not in keys:
+        pose = raw.get("pose", {}).pop(dof, 0.0)
+        keys[name] = [[0.0, float(pose)]]
+    return keys[name]
+
+
+def apply_params(raw: dict, spec: list, x: np.ndarray) -> dict:
+    """A copy of the stroke file contents with the parameters ``x`` (in [-1, 1]) applied."""
+    out = copy.deepcopy(raw)
+    for (kind, _, _, width), xi in zip(spec, x, strict=True):
+        if kind == "period":
+            lo, hi = PERIODS[out.get("name", "")]
+            out["period_s"] = float(np.clip(out["period_s"] + width * xi, lo, hi))
+    for (kind, dof, idx, width), xi in zip(spec, x, strict=True):
+        if kind == "period":
+            continue
+        keys = _dof_keys(out, dof)
+        lo, hi = RANGES.get(dof, (-math.inf, math.inf))
+        if kind == "key":
+            keys[idx][1] += width * xi
+        elif kind == "all":
+            for k in keys:
+                k[1] += width * xi
+        elif kind == "amp":
+            mean = float(np.mean([k[1] for k in keys]))
+            for k in keys:
+                k[1] = mean + (k[1] - mean) * (1.0 + width * xi)
+        for k in keys:
+            k[1] = float(np.clip(k[1], lo, hi))
+    return out
+
+
+#: joint ranges the keys are clipped to [deg] (swimmer.xml)
+RANGES = {"elbow_l.flex": (0.0, 150.0), "elbow_l.pronation": (-90.0, 90.0),
+          "knee_l.flex": (0.0, 150.0), "ankle_l.plantar": (-30.0, 70.0),
+          "ankle_l.inversion": (-35.0, 35.0)}
+
+
+def _evaluate(args: tuple) -> tuple[float, dict]:
+    raw, seconds, head_min, power_cap, drift_weight, objective = args
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from flapsim.errors import FlapsimError
+    from flapsim.swim.simulate import swim
+
+    try:
+        s = swim(parse_stroke(raw, "<tuned>"), seconds).summary()
+    except FlapsimError:
+        return 1e3, {}
+    if objective == "speed":
+        cost = -s["speed_m_s"]
+        cost += 5.0 * max(0.0, head_min - s["head_height_mean_m"])
+    else:  # keep the head as high as possible, the lowest moment counting as much as the mean
+        cost = -0.5 * (s["head_height_mean_m"] + s["head_height_min_m"])
+        cost += 0.5 * max(0.0, s["head_horizontal_drift_max_m"] - 0.2)
+    cost += max(0.0, s["muscle_power_mean_w"] - power_cap) / 200.0
+    # the basic layer cannot steer: a stroke that veers is a worse stroke
+    cost += drift_weight * abs(s["lateral_drift_m"]) / s["seconds"]
+    return cost, s
+
+
+def dump_toml(raw: dict) -> str:
+    """A stroke file from its contents (keys written one list per dof)."""
+    lines = []
+    for k in ("name", "description", "period_s", "posture", "interpolation"):
+        if k in raw:
+            lines.append(f"{k} = {json.dumps(raw[k])}")
+    if raw.get("pose"):
+        lines.append("\n[pose]")
+        lines += [f'"{k}" = {v:g}' for k, v in raw["pose"].items()]
+    for joint, dofs in raw.get("keys", {}).items():
+        lines.append(f"\n[keys.{joint}]")
+        for dof, keys in dofs.items():
+            pairs = ", ".join(f"[{p:.3f}, {v:.0f}]" for p, v in keys)
+            lines.append(f"{dof} = [{pairs}]")
+    if raw.get("mirror"):
+        lines.append("\n[mirror]")
+        for t, m in raw["mirror"].items():
+            lines.append(f'{t} = {{ from = "{m["from"]}", shift = {m.get("shift", 0.0):g} }}')
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("stroke", choices=sorted(SPECS))
+    ap.add_argument("--generations", type=int, default=25)
+    ap.add_argument("--popsize", type=int, default=16)
+    ap.add_argument("--seconds", type=float, default=10.0, help="simulated seconds per trial")
+    ap.add_argument("--head-min", type=float, default=-0.10,
+                    help="mean head-centre height below which a trial is penalised [m]")
+    ap.add_argument("--power-cap", type=float, default=450.0,
+                    help="mean muscle power above which a trial is penalised [W]")
+    ap.add_argument("--drift-weight", type=float, default=0.5,
+                    help="cost per m/s of sideways drift")
+    ap.add_argument("--start", help="start from this stroke file (e.g. an earlier result) "
+                    "instead of the bundled one; it must have the same keys")
+    ap.add_argument("--sigma", type=float, default=0.3, help="initial step (fraction of band)")
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    raw = tomllib.loads(stroke_path(a.start or a.stroke).read_text())
+    spec, objective = SPECS[a.stroke]
+    n = len(spec)
+    rng = np.random.default_rng(a.seed)
+    state_path = a.out + ".state.npz"
+    mean, sigma, gen0 = np.zeros(n), a.sigma, 0
+    best = (math.inf, np.zeros(n), {})
+    if os.path.exists(state_path):
+        st = np.load(state_path, allow_pickle=False)
+        mean, sigma, gen0 = st["mean"], float(st["sigma"]), int(st["gen"])
+        best = (float(st["best_cost"]), st["best_x"], json.loads(str(st["best_summary"])))
+        rng = np.random.default_rng([a.seed, gen0])
+        print(f"resuming at generation {gen0} (best speed {best[2].get('speed_m_s')})")
+    # a (mu/mu_w, lambda) evolution strategy with cumulative step-size adaptation
+    # (Hansen's CSA, isotropic): robust, needs no gradient, a few hundred trials
+    mu = a.popsize // 2
+    w = np.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
+    w /= w.sum()
+    mu_eff = 1.0 / float(w @ w)
+    c_s = (mu_eff + 2.0) / (n + mu_eff + 5.0)
+    d_s = 1.0 + c_s + 2.0 * max(0.0, math.sqrt((mu_eff - 1.0) / (n + 1.0)) - 1.0)
+    chi_n = math.sqrt(n) * (1.0 - 1.0 / (4.0 * n) + 1.0 / (21.0 * n * n))
+    p_s = np.zeros(n) if gen0 == 0 else st["p_s"]
+    with ProcessPoolExecutor(a.workers) as pool:
+        for gen in range(gen0, a.generations):
+            t0 = time.perf_counter()
+            z = rng.standard_normal((a.popsize, n))
+            xs = np.clip(mean + sigma * z, -1, 1)
+            if gen == 0:
+                xs[0] = mean  # the starting stroke itself
+            res = list(pool.map(_evaluate, [(apply_params(raw, spec, x), a.seconds, a.head_min,
+                                             a.power_cap, a.drift_weight, objective)
+                                            for x in xs]))
+            costs = np.array([c for c, _ in res])
+            order = np.argsort(costs)
+            if costs[order[0]] < best[0]:
+                best = (float(costs[order[0]]), xs[order[0]].copy(), res[order[0]][1])
+            new_mean = w @ xs[order[:mu]]
+            p_s = (1 - c_s) * p_s + math.sqrt(c_s * (2 - c_s) * mu_eff) * (new_mean - mean) / sigma
+            sigma *= math.exp((c_s / d_s) * (np.linalg.norm(p_s) / chi_n - 1.0))
+            sigma = float(np.clip(sigma, 0.02, 0.8))
+            mean = new_mean
+            s = best[2]
+            print(f"gen {gen + 1}/{a.generations}: best cost {best[0]:.3f} speed "
+                  f"{s.get('speed_m_s', float('nan')):.3f} m/s head "
+                  f"{s.get('head_height_mean_m', float('nan')):.3f} m power "
+                  f"{s.get('muscle_power_mean_w', float('nan')):.0f} W; gen median "
+                  f"{np.median(costs):.3f}; sigma {sigma:.2f}; {time.perf_counter() - t0:.1f} s",
+                  flush=True)
+            np.savez(state_path + ".tmp.npz", mean=mean, sigma=sigma, gen=gen + 1, p_s=p_s,
+                     best_cost=best[0], best_x=best[1], best_summary=json.dumps(best[2]))
+            os.replace(state_path + ".tmp.npz", state_path)
+            with atomic_path(a.out) as tmp:
+                tmp.write_text(dump_toml(apply_params(raw, spec, best[1])))
+    print(json.dumps({"best_x": [round(v, 3) for v in best[1]], **best[2]}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
