@@ -48,6 +48,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="add a point source at X,Y,Z of strength Q [m^3/s] (repeatable)")
     p.add_argument("--vortex", action="append", default=[], metavar="X,Y,GAMMA",
                    help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
+    p.add_argument("--no-feedback", action="store_true",
+                   help="run the basic stroke layer alone: ignore the stroke's feedback rules "
+                        "(treading water then tips over)")
     p.add_argument("--timestep", type=float, default=None, help="physics step [s] (default 0.004)")
     p.add_argument("--video", metavar="PATH", nargs="?", const="swim.mp4", default=None,
                    help="also write an mp4 video (default file swim.mp4)")
@@ -83,7 +86,8 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--video must name an .mp4 file, got {video!r}")
     result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=_flow(args),
                   current=_vec3(args.current, "--current"),
-                  video_fps=args.fps if video else 0.0, progress=True)
+                  video_fps=args.fps if video else 0.0, progress=True,
+                  feedback=not args.no_feedback)
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
     if video:
@@ -107,6 +111,11 @@ def run(args: argparse.Namespace) -> dict:
           f"(above water {100 * s['head_above_water_fraction']:.0f}% of the time)")
     print(f"  centre of mass   {s['com_height_mean_m']:+.3f} m mean relative to the surface")
     print(f"  head drift       {s['head_horizontal_drift_max_m']:.3f} m max horizontally")
+    print(f"  muscle power     {s['muscle_power_mean_w']:.0f} W mean (joint torques x speeds)")
+    print(f"  layers           {' + '.join(s['layers'])}")
+    for name, w in (s.get("feedback_weights") or {}).items():
+        print(f"    {name:14s} weight mean {w['mean']:+.2f}, |w| {w['mean_abs']:.2f}, "
+              f"saturated {100 * w['saturated_fraction']:.0f}% of the time")
     if video:
         print(f"  video            {video}")
     return s

@@ -8,7 +8,7 @@ import time
 
 import mujoco
 
-from flapsim.swim.layers import BasicStrokeLayer
+from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer
 from flapsim.swim.strokes import load_stroke
 
@@ -33,18 +33,39 @@ def run(args: argparse.Namespace) -> dict:
             layer.apply(d, dt)
             mujoco.mj_step(m, d)
 
-    out = {}
-    for label, fn, providers in (("bare_mj_step", bare, False), ("swimmer", full, True)):
-        if providers:
-            sw.attach()
-        sw.reset("prone", qpos_joints=layer.start_pose(0.0))
-        fn(50)  # warm-up (numba compile, caches)
-        steps, wall = 0, 0.0
-        while wall < seconds / 2:
-            # every chunk restarts from the same pose, so both runs see the same states
-            # (a limp, unforced swimmer would otherwise sink onto the pool floor)
+    tread = BasicStrokeLayer(sw, load_stroke("treading"))
+    feedback: list[FeedbackLayer] = []
+
+    def with_feedback(n: int) -> None:
+        for i in range(n):
+            if i % 5 == 0:
+                sw.update_flow()
+                feedback[0].update(d)
+            tread.apply(d, dt)
+            mujoco.mj_step(m, d)
+
+    def start(label: str) -> None:
+        if label == "treading_feedback":
+            sw.reset("upright", qpos_joints=tread.start_pose(0.0))
+            tread.phase = 0.0
+            if not feedback:
+                feedback.append(FeedbackLayer(tread))
+        else:
             sw.reset("prone", qpos_joints=layer.start_pose(0.0))
             layer.phase = 0.0
+
+    out = {}
+    for label, fn, providers in (("bare_mj_step", bare, False), ("swimmer", full, True),
+                                 ("treading_feedback", with_feedback, True)):
+        if providers:
+            sw.attach()
+        start(label)
+        fn(50)  # warm-up (numba compile, caches)
+        steps, wall = 0, 0.0
+        while wall < seconds / 3:
+            # every chunk restarts from the same pose, so all runs see the same states
+            # (a limp, unforced swimmer would otherwise sink onto the pool floor)
+            start(label)
             t0 = time.perf_counter()
             fn(chunk)
             wall += time.perf_counter() - t0
@@ -55,6 +76,7 @@ def run(args: argparse.Namespace) -> dict:
         if providers:
             sw.detach()
     ratio = out["swimmer"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
+    ratio_fb = out["treading_feedback"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
     result = {
         "benchmark": "swimmer",
         "timestep_s": dt,
@@ -62,7 +84,9 @@ def run(args: argparse.Namespace) -> dict:
         "ellipsoids": len(sw.buoyancy.volumes),
         "bare": out["bare_mj_step"],
         "swimmer": out["swimmer"],
+        "treading_feedback": out["treading_feedback"],
         "cost_vs_bare_step": ratio,
+        "treading_feedback_cost_vs_bare_step": ratio_fb,
         "target_realtime_factor": 20.0,
     }
     print(f"swimmer: {len(sw.polygons)} polygons, {result['ellipsoids']} buoyancy ellipsoids, "
@@ -72,4 +96,7 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  full swimmer     {out['swimmer']['us_per_step']:.1f} us/step "
           f"({out['swimmer']['realtime_factor']:.1f}x real time; target >= 20x)")
     print(f"  cost vs bare     {ratio:.2f}x")
+    print(f"  treading + feedback layer (50 Hz) {out['treading_feedback']['us_per_step']:.1f} "
+          f"us/step ({out['treading_feedback']['realtime_factor']:.1f}x real time, "
+          f"{ratio_fb:.2f}x bare)")
     return result

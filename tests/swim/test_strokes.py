@@ -115,3 +115,80 @@ def test_bad_stroke_files_are_one_line_errors(tmp_path):
     bad.write_text("name = [\n")
     with pytest.raises(DataFileError, match="not valid TOML"):
         load_stroke(str(bad))
+
+
+def test_perturbations_parse_and_blend(tmp_path):
+    from flapsim.swim.layers import FeedbackLayer
+
+    f = tmp_path / "p.toml"
+    f.write_text(
+        'posture = "upright"\n[keys.shoulder_l]\nabd = [[0.0, 40], [0.5, 60]]\n'
+        '[perturb.up]\nfeedback = { tilt_x = 2.0, bias = 0.25 }\n'
+        '[perturb.up.keys.shoulder_l]\nflex = [[0.0, 20]]\nabd = [[0.0, 10], [0.5, -10]]\n'
+        '[mirror]\nshoulder_r = { from = "shoulder_l", shift = 0.5 }\n')
+    st = load_stroke(str(f))
+    p = st.perturbations["up"]
+    assert p.gains == {"tilt_x": 2.0} and p.bias == 0.25
+    x = np.linspace(0, 1, 9)
+    # offsets add with their weight, and mirror like the keys (half a cycle later)
+    assert np.allclose(st.curve("shoulder_l.flex", x, {"up": 0.5}), 10.0)
+    assert np.allclose(st.curve("shoulder_r.abd", x, {"up": -1.0}),
+                       st.curve("shoulder_l.abd", x - 0.5, {"up": -1.0}))
+    sw = Swimmer(SwimmerParams(world="bare"))
+    basic = BasicStrokeLayer(sw, st, nsamp=60)
+    sw.reset("upright", height=0.0)
+    fb = FeedbackLayer(basic)
+    # upright and in place: w = bias; the blended tables at w = 1 are the stroke sampled
+    # with the offsets (exactly: the blend's end point), at w = 0 the plain stroke
+    w = fb.update(sw.data)
+    assert w == {"up": 0.25}
+    fb.basic.stroke.perturbations["up"] = type(p)("up", p.keys, {}, 1.0)
+    fb.update(sw.data)
+    full = stroke_tables(st, sw.joints, 60, {"up": 1.0})
+    assert np.allclose(basic._tq.reshape(full.q.shape), full.q, atol=1e-12)
+    fb.basic.stroke.perturbations["up"] = type(p)("up", p.keys, {}, -3.0)  # clipped to -1
+    fb.update(sw.data)
+    assert fb.weights["up"] == -1.0
+    minus = stroke_tables(st, sw.joints, 60, {"up": -1.0})
+    assert np.allclose(basic._tq.reshape(minus.q.shape), minus.q, atol=1e-12)
+
+
+def test_feedback_signals_measure_lean_and_drift():
+    from flapsim.swim.feedback import signals
+
+    sw = Swimmer(SwimmerParams(world="bare"))
+    sw.reset("upright", height=0.0)
+    d = sw.data
+    ref = sw.com()[:2].copy()
+    # lean the whole body 10 deg forwards (about +y) and move it 0.2 m along +y
+    a = np.radians(10.0)
+    d.qpos[3:7] = (np.cos(a / 2), 0.0, np.sin(a / 2), 0.0)
+    d.qpos[1] += 0.2
+    d.qvel[:] = 0.0
+    d.qvel[4] = 0.5  # pitching forwards at 0.5 rad/s (world angular velocity, y)
+    mujoco.mj_forward(sw.model, d)
+    s = signals(sw.model, d, sw.body["thorax"], sw.body["pelvis"], ref)
+    assert s["tilt_x"] == pytest.approx(np.sin(a), abs=1e-9)
+    assert s["tilt_y"] == pytest.approx(0.0, abs=1e-9)
+    # d(sin lean)/dt = cos(lean) * rate
+    assert s["tilt_rate_x"] == pytest.approx(np.cos(a) * 0.5, rel=1e-9)
+    assert s["offset_y"] == pytest.approx(0.2, abs=1e-9)
+
+
+def test_bad_perturbations_are_one_line_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    head = "[keys.knee_l]\nflex = [[0.0, 10]]\n"
+    bad.write_text(head + "[perturb.x]\nfeedback = { wobble = 1 }\n"
+                   "[perturb.x.keys.knee_l]\nflex = [[0.0, 5]]\n")
+    with pytest.raises(DataFileError, match="unknown signals"):
+        load_stroke(str(bad))
+    bad.write_text(head + "[perturb.x]\nfeedback = { tilt_x = 1 }\n")
+    with pytest.raises(DataFileError, match="needs"):
+        load_stroke(str(bad))
+    bad.write_text(head + "[perturb.x.keys.shoulder_l]\nflex = [[0.0, 0], [1.0, 360]]\n")
+    with pytest.raises(DataFileError, match="whole turns"):
+        load_stroke(str(bad))
+    bad.write_text(head + "[perturb.x]\nfeedback = { tilt_x = 'a' }\n"
+                   "[perturb.x.keys.knee_l]\nflex = [[0.0, 5]]\n")
+    with pytest.raises(DataFileError, match="numbers"):
+        load_stroke(str(bad))

@@ -1,8 +1,7 @@
 """The swimmer: floating with and without lungs, density sweep, strokes, stroke files.
 
-Numbers asserted here are what the model does on its defaults; the issue's human speed
-ranges are NOT all met (see the README), so the stroke tests guard the measured
-behaviour (forward motion at the measured speeds) rather than claim those ranges.
+The stroke tests assert the issue's acceptance ranges on the defaults (20 s each; a
+20-s swim takes ~0.2 s here).
 """
 
 import mujoco
@@ -49,36 +48,54 @@ def test_density_sweep_is_monotone():
 
 @pytest.fixture(scope="module")
 def crawl():
-    return swim("crawl", 12.0).summary()
+    return swim("crawl", 20.0).summary()
 
 
 @pytest.fixture(scope="module")
 def breaststroke():
-    return swim("breaststroke", 12.0).summary()
+    return swim("breaststroke", 20.0).summary()
 
 
-def test_crawl_moves_forward_at_the_measured_speed(crawl):
-    # measured 0.54 m/s (20 s) on the defaults: below the 0.7-2.0 m/s human range (README);
-    # 0.45 guards the windmill recovery (an underwater recovery went backwards, -0.1 m/s)
-    assert crawl["speed_m_s"] > 0.45
+def test_crawl_meets_the_human_range(crawl):
+    # issue #4 acceptance on the defaults, 20 s: 0.7-2.0 m/s forward (recreational to
+    # elite); measured 0.98 m/s at 0.8 cycles/s, 1.23 m per cycle
+    assert 0.7 <= crawl["speed_m_s"] <= 2.0
     assert 0.6 <= crawl["stroke_rate_hz"] <= 1.0  # human crawl cycle rates
-    assert crawl["head_height_mean_m"] > -0.1  # the head stays at the surface
-    # breathing to one side only curves the path a little: measured 2.1 m sideways over
-    # ~6 m forward in 12 s; the heading must stay within ~27 deg of the start on average
-    assert abs(crawl["lateral_drift_m"]) < 0.5 * crawl["distance_m"]
+    # the head stays at the surface: measured +0.02 m mean (face in the water, turned
+    # to breathe), never more than 0.1 m under
+    assert crawl["head_height_min_m"] > -0.1
+    # breathing to one side curves the path a little: measured 0.6 m sideways over
+    # 18.8 m; the heading must stay within ~6 deg of the start on average
+    assert abs(crawl["lateral_drift_m"]) < 0.1 * crawl["distance_m"]
 
 
-def test_breaststroke_moves_forward_at_the_measured_speed(breaststroke):
-    # measured 0.27 m/s: below the 0.5-1.5 m/s human range (README, bluff box drag)
-    assert breaststroke["speed_m_s"] > 0.2
+def test_breaststroke_meets_the_human_range(breaststroke):
+    # acceptance, 20 s: 0.5-1.5 m/s; measured 0.65 m/s at 0.77 cycles/s
+    assert 0.5 <= breaststroke["speed_m_s"] <= 1.5
     assert 0.4 <= breaststroke["stroke_rate_hz"] <= 1.1
-    assert abs(breaststroke["lateral_drift_m"]) < 0.05  # a symmetric stroke goes straight
-    assert breaststroke["head_height_mean_m"] > -0.2
+    # a symmetric stroke: sideways motion only from round-off growing through the
+    # (unsteered) yaw; measured 0.05 m over 12.5 m (< 1 deg), allowed < 3 deg
+    assert abs(breaststroke["lateral_drift_m"]) < 0.05 * breaststroke["distance_m"]
+    # head near the surface: its centre 0.09 m under on average (the top of the head
+    # is out; it rises to -0.03 m in the breath)
+    assert breaststroke["head_height_mean_m"] > -0.15
 
 
-def test_treading_stays_in_place():
-    r = swim("treading", 10.0).summary()
-    # the head centre stays ~5 cm below the surface (the top of the head is out); the
-    # issue asks for the head above water, which the model does not reach (README)
+def test_treading_keeps_the_head_above_water():
+    # acceptance: the head above water and within 0.3 m of its start for 20 s.
+    # Measured: head centre +0.067..+0.123 m, drift 0.10 m, lean weight never saturated.
+    r = swim("treading", 20.0).summary()
+    assert r["head_height_min_m"] > 0.0
     assert r["head_horizontal_drift_max_m"] < 0.3
-    assert r["head_height_mean_m"] > -0.1
+    assert r["layers"] == ["basic stroke", "feedback"]
+    assert r["feedback_weights"]["lean"]["saturated_fraction"] < 0.05
+
+
+def test_treading_open_loop_tips_over():
+    # why the feedback layer exists: the upright scull is an unstable balance; without
+    # its lean rule the swimmer tips and drifts off (measured: head above water 37 % of
+    # the time, 3.9 m drift); a broken feedback path would look like this too
+    r = swim("treading", 20.0, feedback=False).summary()
+    assert r["layers"] == ["basic stroke"]
+    assert r["head_above_water_fraction"] < 0.8
+    assert r["head_horizontal_drift_max_m"] > 1.0
