@@ -55,6 +55,8 @@ _BREAST = (
     + [("all", "neck.flex", 0, 15.0), ("period", "", 0, 0.3)]
     + [("key", "hip_l.flex", 4, 10.0), ("key", "knee_l.flex", 4, 10.0),
        ("key", "shoulder_l.flex", 6, 10.0)]
+    + [("key", "neck.flex", i, 20.0) for i in range(1, 4)]
+    + [("key", "thoracic.flex", 1, 15.0)]
 )
 # treading: every key of the arms' scull and the legs' kick
 _TREAD = (
@@ -122,7 +124,7 @@ RANGES = {"elbow_l.flex": (0.0, 150.0), "elbow_l.pronation": (-90.0, 90.0),
 
 
 def _evaluate(args: tuple) -> tuple[float, dict]:
-    raw, seconds, head_min, power_cap, drift_weight, objective = args
+    raw, seconds, head_min, power_cap, drift_weight, objective, breathe, breath_height = args
     os.environ.setdefault("MUJOCO_GL", "egl")
     from flapsim.errors import FlapsimError
     from flapsim.swim.simulate import swim
@@ -134,6 +136,10 @@ def _evaluate(args: tuple) -> tuple[float, dict]:
     if objective == "speed":
         cost = -s["speed_m_s"]
         cost += 5.0 * max(0.0, head_min - s["head_height_mean_m"])
+        # a swimmer breathes: the head's centre (eye level) clears the water in most
+        # cycles, and by breath_height on average at each cycle's highest point
+        cost += breathe * max(0.0, 0.9 - s["breathing_cycles_fraction"])
+        cost += 5.0 * breathe * max(0.0, breath_height - s["head_height_cycle_peak_mean_m"])
     else:  # keep the head as high as possible, the lowest moment counting as much as the mean
         cost = -0.5 * (s["head_height_mean_m"] + s["head_height_min_m"])
         cost += 0.5 * max(0.0, s["head_horizontal_drift_max_m"] - 0.2)
@@ -176,6 +182,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="mean muscle power above which a trial is penalised [W]")
     ap.add_argument("--drift-weight", type=float, default=0.5,
                     help="cost per m/s of sideways drift")
+    ap.add_argument("--breathe", type=float, default=1.0,
+                    help="cost when fewer than 90 %% of the cycles lift the head out, per "
+                         "missing fraction")
+    ap.add_argument("--breath-height", type=float, default=0.0,
+                    help="mean per-cycle peak of the head centre wanted above water [m] "
+                         "(breaststroke, face forwards: ~0.06 puts the mouth out)")
     ap.add_argument("--start", help="start from this stroke file (e.g. an earlier result) "
                     "instead of the bundled one; it must have the same keys")
     ap.add_argument("--sigma", type=float, default=0.3, help="initial step (fraction of band)")
@@ -214,7 +226,8 @@ def main(argv: list[str] | None = None) -> int:
             if gen == 0:
                 xs[0] = mean  # the starting stroke itself
             res = list(pool.map(_evaluate, [(apply_params(raw, spec, x), a.seconds, a.head_min,
-                                             a.power_cap, a.drift_weight, objective)
+                                             a.power_cap, a.drift_weight, objective,
+                                             a.breathe, a.breath_height)
                                             for x in xs]))
             costs = np.array([c for c, _ in res])
             order = np.argsort(costs)

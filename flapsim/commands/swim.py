@@ -108,7 +108,8 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  distance/stroke  {s['distance_per_stroke_m']:.3f} m")
     print(f"  head centre      {s['head_height_mean_m']:+.3f} m mean, "
           f"{s['head_height_min_m']:+.3f}..{s['head_height_max_m']:+.3f} m "
-          f"(above water {100 * s['head_above_water_fraction']:.0f}% of the time)")
+          f"(above water {100 * s['head_above_water_fraction']:.0f}% of the time, in "
+          f"{100 * s['breathing_cycles_fraction']:.0f}% of the cycles)")
     print(f"  centre of mass   {s['com_height_mean_m']:+.3f} m mean relative to the surface")
     print(f"  head drift       {s['head_horizontal_drift_max_m']:.3f} m max horizontally")
     print(f"  muscle power     {s['muscle_power_mean_w']:.0f} W mean (joint torques x speeds)")

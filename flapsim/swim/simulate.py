@@ -69,6 +69,26 @@ class SwimResult:
         k = min(k, len(t) - 1)
         return float((x[k] - x[0]) / (t[k] - t[0]))
 
+    def _cycle_peaks(self) -> np.ndarray:
+        """Highest head-centre height above the water in each whole cycle after the
+        first ones [m]."""
+        sel = self._steady()
+        t, z = self.times[sel], self.head[sel, 2] - self.water_level
+        if len(t) < 2:
+            return np.zeros(0)
+        cycle = np.floor((t - t[0]) * self.rate_hz + 1e-9).astype(int)
+        n = math.floor((t[-1] - t[0]) * self.rate_hz + 1e-9)
+        if n < 1:
+            return np.array([z.max()])
+        return np.array([z[cycle == c].max() for c in range(n)])
+
+    @property
+    def breathing_cycles(self) -> float:
+        """Fraction of the whole cycles after the first ones in which the head's centre
+        (about eye level) rises above the water at least once."""
+        peaks = self._cycle_peaks()
+        return float(np.mean(peaks > 0)) if len(peaks) else 0.0
+
     @property
     def distance_per_stroke(self) -> float:
         """Forward distance per cycle [m]."""
@@ -92,6 +112,9 @@ class SwimResult:
             "head_height_min_m": float(head_z[sel].min()),
             "head_height_max_m": float(head_z[sel].max()),
             "head_above_water_fraction": float((head_z[sel] > 0).mean()),
+            "breathing_cycles_fraction": self.breathing_cycles,
+            "head_height_cycle_peak_mean_m": float(np.mean(self._cycle_peaks()))
+            if len(self._cycle_peaks()) else None,
             "com_height_mean_m": float(com_z[sel].mean()),
             "com_height_end_m": float(com_z[-1]),
             "lateral_drift_m": float(self.com[-1, 1] - self.com[0, 1]),
