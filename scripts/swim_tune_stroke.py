@@ -204,6 +204,9 @@ def main(argv: list[str] | None = None) -> int:
     best = (math.inf, np.zeros(n), {})
     if os.path.exists(state_path):
         st = np.load(state_path, allow_pickle=False)
+        if str(st["stroke"]) != a.stroke or st["mean"].shape != (n,):
+            sys.exit(f"{state_path} belongs to a {st['stroke']} run with {st['mean'].size} "
+                     f"parameters: delete it or choose another --out")
         mean, sigma, gen0 = st["mean"], float(st["sigma"]), int(st["gen"])
         best = (float(st["best_cost"]), st["best_x"], json.loads(str(st["best_summary"])))
         rng = np.random.default_rng([a.seed, gen0])
@@ -245,7 +248,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{s.get('muscle_power_mean_w', float('nan')):.0f} W; gen median "
                   f"{np.median(costs):.3f}; sigma {sigma:.2f}; {time.perf_counter() - t0:.1f} s",
                   flush=True)
-            np.savez(state_path + ".tmp.npz", mean=mean, sigma=sigma, gen=gen + 1, p_s=p_s,
+            np.savez(state_path + ".tmp.npz", stroke=a.stroke, mean=mean, sigma=sigma,
+                     gen=gen + 1, p_s=p_s,
                      best_cost=best[0], best_x=best[1], best_summary=json.dumps(best[2]))
             os.replace(state_path + ".tmp.npz", state_path)
             with atomic_path(a.out) as tmp:
