@@ -16,7 +16,7 @@ does ("key poses are defined for each joint separately"), in degrees::
     flex = [[0.0, 178], [0.3, 110], [0.6, 178]]
 
     [mirror]                  # copy a joint to the other side, shifted in phase
-    shoulder_r = { from = "shoulder_l", shift = 0.0 }
+    shoulder_r = { from = "shoulder_l", shift = 0.0 }   # (scale = -1: opposite angles)
 
     [perturb.lean]            # optional: a perturbation the feedback layer weighs
     description = "scull further forwards (w > 0) or backwards (w < 0)"
@@ -267,10 +267,16 @@ def _parse_keys(table: object, mirror: dict, path: str | Path, where: str,
         src = spec.get("from") if isinstance(spec, dict) else None
         if target not in ANATOMY or src not in ANATOMY:
             raise DataFileError(f"{path}: mirror {target} = {spec!r} must name two joints")
-        shift = float(spec.get("shift", 0.0))
+        try:
+            shift = float(spec.get("shift", 0.0))
+            scale = float(spec.get("scale", 1.0))
+        except (TypeError, ValueError):
+            raise DataFileError(f"{path}: mirror {target}: shift and scale must be numbers"
+                                ) from None
         for full in [k for k in list(keys) if k.startswith(src + ".")]:
             dof = full.split(".", 1)[1]
-            keys[f"{target}.{dof}"] = _shifted(keys[full], shift)
+            ph, val, turn = _shifted(keys[full], shift)
+            keys[f"{target}.{dof}"] = (ph, scale * val, scale * turn)
     return keys
 
 
@@ -281,11 +287,13 @@ def _parse_perturbation(name: str, spec: object, mirror: dict, path: str | Path
     where = f"perturb.{name}"
     if not isinstance(spec, dict):
         raise DataFileError(f"{path}: [{where}] must be a table")
-    unknown = set(spec) - {"keys", "feedback", "description"}
+    unknown = set(spec) - {"keys", "feedback", "description", "mirror"}
     if unknown:
         raise DataFileError(f"{path}: [{where}] has unknown entries {sorted(unknown)}; "
-                            "allowed: keys, feedback, description")
-    keys = _parse_keys(spec.get("keys", {}), mirror, path, f"{where}.keys")
+                            "allowed: keys, feedback, description, mirror")
+    # its own [perturb.NAME.mirror] (e.g. scale = -1: the other side does the opposite)
+    # replaces the stroke's mirror table for this perturbation
+    keys = _parse_keys(spec.get("keys", {}), spec.get("mirror", mirror), path, f"{where}.keys")
     if not keys:
         raise DataFileError(f"{path}: [{where}] needs [{where}.keys.<joint>] offsets")
     for full, key in keys.items():

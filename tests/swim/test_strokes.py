@@ -192,3 +192,19 @@ def test_bad_perturbations_are_one_line_errors(tmp_path):
                    "[perturb.x.keys.knee_l]\nflex = [[0.0, 5]]\n")
     with pytest.raises(DataFileError, match="numbers"):
         load_stroke(str(bad))
+
+
+def test_perturbation_mirror_scale_gives_opposite_sides(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text(
+        '[keys.elbow_l]\npronation = [[0.0, 10]]\n'
+        '[perturb.sway.keys.elbow_l]\npronation = [[0.0, 15], [0.5, -15]]\n'
+        '[perturb.sway.mirror]\nelbow_r = { from = "elbow_l", scale = -1.0 }\n'
+        '[mirror]\nelbow_r = { from = "elbow_l" }\n')
+    st = load_stroke(str(f))
+    x = np.linspace(0, 1, 11)
+    # the keys mirror as usual, the perturbation's own mirror flips the offsets
+    assert np.allclose(st.curve("elbow_r.pronation", x), 10.0)
+    left = st.curve("elbow_l.pronation", x, {"sway": 1.0}) - 10.0
+    right = st.curve("elbow_r.pronation", x, {"sway": 1.0}) - 10.0
+    assert np.allclose(right, -left) and np.abs(left).max() == pytest.approx(15.0)

@@ -91,7 +91,9 @@ def test_treading_keeps_the_head_above_water():
     assert r["head_height_min_m"] > 0.0
     assert r["head_horizontal_drift_max_m"] < 0.3
     assert r["layers"] == ["basic stroke", "feedback"]
-    assert r["feedback_weights"]["lean"]["saturated_fraction"] < 0.05
+    # the rules correct within their range: neither weight sits at its +-1 limit
+    for name in ("lean", "sway"):
+        assert r["feedback_weights"][name]["saturated_fraction"] < 0.05
 
 
 def test_treading_open_loop_tips_over():
@@ -102,3 +104,10 @@ def test_treading_open_loop_tips_over():
     assert r["layers"] == ["basic stroke"]
     assert r["head_above_water_fraction"] < 0.8
     assert r["head_horizontal_drift_max_m"] > 1.0
+
+
+def test_crawl_speed_is_converged_in_the_timestep(crawl):
+    # the tuned stroke is not a numerical accident: at a 2 ms step (half the default)
+    # the speed agrees within 2 % (measured 0.983 / 0.980 / 0.978 m/s at 4 / 2 / 1 ms)
+    fine = swim("crawl", 20.0, params=SwimmerParams(timestep=0.002)).summary()
+    assert fine["speed_m_s"] == pytest.approx(crawl["speed_m_s"], rel=0.02)
