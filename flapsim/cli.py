@@ -48,6 +48,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _route_mujoco_warnings() -> None:
+    """MuJoCo writes its warnings (an unstable simulation, a full contact buffer) to
+    ``MUJOCO_LOG.TXT`` in the working directory. In the CLI's own process send them to
+    the log on stderr instead, each message text once. (Library users keep MuJoCo's
+    default: the handler is process-wide, so flapsim does not set it on import.)"""
+    import mujoco
+
+    seen: set[str] = set()
+    log = logging.getLogger("flapsim.mujoco")
+
+    def warn(message: str) -> None:
+        if message not in seen:
+            seen.add(message)
+            log.warning("%s", message.strip())
+
+    mujoco.set_mju_user_warning(warn)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -59,6 +77,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     from flapsim.io import write_json
+
+    _route_mujoco_warnings()
 
     t0 = time.perf_counter()
     try:

@@ -56,3 +56,28 @@ def test_json_into_missing_folder_is_a_clear_error(tmp_path):
     r = run_cli("demo", "--seconds", "0.1", "--json", str(tmp_path / "nope" / "x.json"))
     assert r.returncode == 2
     assert "does not exist" in r.stderr
+
+
+def test_cli_routes_mujoco_warnings_to_the_log(tmp_path, monkeypatch, caplog):
+    # MuJoCo would write MUJOCO_LOG.TXT into the user's folder; the CLI logs instead
+    import logging
+
+    import mujoco
+
+    from flapsim import cli
+
+    monkeypatch.chdir(tmp_path)
+    try:
+        cli._route_mujoco_warnings()
+        m = mujoco.MjModel.from_xml_string(
+            '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>')
+        d = mujoco.MjData(m)
+        with caplog.at_level(logging.WARNING, logger="flapsim.mujoco"):
+            for _ in range(2):  # the same message twice is logged once
+                d.qvel[0] = 1e30
+                mujoco.mj_step(m, d)
+    finally:
+        mujoco.set_mju_user_warning(None)
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    msgs = [r.getMessage() for r in caplog.records if r.name == "flapsim.mujoco"]
+    assert len(msgs) == 1 and "unstable" in msgs[0]
