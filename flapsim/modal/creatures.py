@@ -187,9 +187,11 @@ def run_creature(
     length = body_length(model, spec.closed_loop)
     dx = float(end_com[0] - start_com[0])
     horiz = float(np.hypot(*(end_com[:2] - start_com[:2])))
-    # Ring plane tilt: the hinge axis (body y) should stay horizontal.
+    # Ring plane tilt: the loop's hinge axis (body y) should stay horizontal. The linear
+    # creature rolls about its own length, so a root axis tilt means nothing there.
     axis_y = data.xmat[root].reshape(3, 3)[:, 1]
-    tilt_deg = math.degrees(math.asin(min(abs(float(axis_y[2])), 1.0)))
+    tilt_deg = (math.degrees(math.asin(min(abs(float(axis_y[2])), 1.0)))
+                if spec.closed_loop else None)
     result = {
         "creature": name,
         "model_file": spec.filename,
