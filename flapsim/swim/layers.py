@@ -103,7 +103,26 @@ class FeedbackLayer:
                     t.q[flip, a:a + 4] *= -1
             self._dq.append((plus.q - base.q, minus.q - base.q))
             self._dv.append((plus.v - base.v, minus.v - base.v))
-        self._balls = self._ball_cols(sw)
+        # only the columns some perturbation moves are re-blended (lean: 8 of 40)
+        touched_q = sorted({int(c) for pair in self._dq for d in pair
+                            for c in np.flatnonzero(np.abs(d).max(axis=0) > 0)})
+        touched_v = sorted({int(c) for pair in self._dv for d in pair
+                            for c in np.flatnonzero(np.abs(d).max(axis=0) > 0)})
+        balls = self._ball_cols(sw)
+        # a ball joint's quaternion is renormalised as a whole: blend all 4 columns
+        for a in balls:
+            if any(a <= c < a + 4 for c in touched_q):
+                touched_q = sorted(set(touched_q) | set(range(a, a + 4)))
+        self._cq = np.asarray(touched_q, dtype=np.int64)
+        self._cv = np.asarray(touched_v, dtype=np.int64)
+        self._balls = [int(np.searchsorted(self._cq, a)) for a in balls if a in set(touched_q)]
+        self._dq = [(p[:, self._cq].copy(), m[:, self._cq].copy()) for p, m in self._dq]
+        self._dv = [(p[:, self._cv].copy(), m[:, self._cv].copy()) for p, m in self._dv]
+        self._q0 = self._base_q[:, self._cq].copy()
+        self._v0 = self._base_v[:, self._cv].copy()
+        # views of the basic layer's flat target tables (what pd_controls reads)
+        self._tq = basic._tq.reshape(self._base_q.shape)
+        self._tv = basic._tv.reshape(self._base_v.shape)
         self.trunk = sw.body["thorax"]
         self.root = sw.body["pelvis"]
         self.reference = (np.asarray(reference, dtype=float)[:2].copy() if reference is not None
@@ -124,8 +143,8 @@ class FeedbackLayer:
         """Measure the signals, set each perturbation's weight, blend the targets."""
         sw = self.basic.swimmer
         values = signals(sw.model, data, self.trunk, self.root, self.reference)
-        q = self._base_q.copy()
-        v = self._base_v.copy()
+        q = self._q0.copy()
+        v = self._v0.copy()
         for i, name in enumerate(self.names):
             p = self.basic.stroke.perturbations[name]
             w = weight(p.gains, p.bias, values)
@@ -138,8 +157,8 @@ class FeedbackLayer:
                 v -= w * self._dv[i][1]
         for a in self._balls:
             q[:, a:a + 4] /= np.linalg.norm(q[:, a:a + 4], axis=1, keepdims=True)
-        self.basic._tq[:] = q.reshape(-1)
-        self.basic._tv[:] = v.reshape(-1)
+        self._tq[:, self._cq] = q
+        self._tv[:, self._cv] = v
         self.history.append([self.weights[k] for k in self.names])
         return self.weights
 
