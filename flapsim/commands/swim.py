@@ -48,6 +48,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="add a point source at X,Y,Z of strength Q [m^3/s] (repeatable)")
     p.add_argument("--vortex", action="append", default=[], metavar="X,Y,GAMMA",
                    help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--target", metavar="X,Y",
+                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke")
+    g.add_argument("--path", metavar="FILE",
+                   help="follow a path: a text file of 'x, y' points [m], one per line")
+    g.add_argument("--figure8", type=float, metavar="R",
+                   help="follow a figure of eight of loop radius R [m] (>= ~4 m: the crawl's "
+                        "turning circle is ~3.5 m)")
+    g.add_argument("--heading", type=float, metavar="DEG",
+                   help="hold this heading [deg from +x towards +y] (default: hold the start "
+                        "heading)")
+    p.add_argument("--lookahead", type=float, default=2.0,
+                   help="path following: steer at the point this far along the path [m]")
     p.add_argument("--no-feedback", action="store_true",
                    help="run the basic stroke layer alone: ignore the stroke's feedback rules "
                         "(treading water then tips over)")
@@ -72,6 +85,33 @@ def _flow(args: argparse.Namespace) -> FlowField:
     return FlowField(prims)
 
 
+def _target(args: argparse.Namespace):
+    from flapsim.swim.targets import Heading, Point, figure_eight, load_path
+
+    if args.target is not None:
+        x, y = _vec2(args.target, "--target")
+        return Point(x, y)
+    if args.path is not None:
+        return load_path(args.path, args.lookahead)
+    if args.figure8 is not None:
+        return figure_eight(args.figure8, lookahead=args.lookahead)
+    if args.heading is not None:
+        if not np.isfinite(args.heading):
+            raise InputError("--heading must be a finite angle in degrees")
+        return Heading(np.radians(args.heading))
+    return None
+
+
+def _vec2(text: str, what: str) -> tuple[float, float]:
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise InputError(f"{what} must be two comma-separated numbers, got {text!r}") from None
+    if len(v) != 2 or not np.all(np.isfinite(v)):
+        raise InputError(f"{what} must be two finite comma-separated numbers, got {text!r}")
+    return v  # type: ignore[return-value]
+
+
 def run(args: argparse.Namespace) -> dict:
     if not (0 < args.seconds <= 3600):
         raise InputError(f"--seconds must be in (0, 3600], got {args.seconds}")
@@ -87,7 +127,7 @@ def run(args: argparse.Namespace) -> dict:
     result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=_flow(args),
                   current=_vec3(args.current, "--current"),
                   video_fps=args.fps if video else 0.0, progress=True,
-                  feedback=not args.no_feedback)
+                  feedback=not args.no_feedback, target=_target(args))
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
     if video:
@@ -104,6 +144,8 @@ def run(args: argparse.Namespace) -> dict:
           f"({s['realtime_factor']:.1f}x real time)")
     print(f"  speed            {s['speed_m_s']:.3f} m/s (after {2} cycles; whole run "
           f"{s['mean_speed_whole_run_m_s']:.3f} m/s, {s['distance_m']:.2f} m)")
+    if "target" in s:
+        print(f"  track speed      {s['track_speed_m_s']:.3f} m/s (along the swum track)")
     print(f"  stroke rate      {s['stroke_rate_hz']:.3f} cycles/s ({s['cycles']} cycles)")
     print(f"  distance/stroke  {s['distance_per_stroke_m']:.3f} m")
     print(f"  head centre      {s['head_height_mean_m']:+.3f} m mean, "
@@ -114,6 +156,20 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  head drift       {s['head_horizontal_drift_max_m']:.3f} m max horizontally")
     print(f"  muscle power     {s['muscle_power_mean_w']:.0f} W mean (joint torques x speeds)")
     print(f"  layers           {' + '.join(s['layers'])}")
+    if "target" in s:
+        t = s["target"]
+        if t["kind"] == "point":
+            reached = (f"reached at {s['target_reached_s']:.1f} s" if s["target_reached_s"]
+                       is not None else "not reached")
+            print(f"  target           ({t['x_m']:g}, {t['y_m']:g}) m: {reached}; closest "
+                  f"{s['target_distance_min_m']:.2f} m, at the end {s['target_distance_end_m']:.2f} m")
+        elif t["kind"] == "path":
+            done = (f"completed at {s['path_completed_s']:.1f} s" if s["path_completed_s"]
+                    is not None else f"{100 * s['path_completed_fraction']:.0f}% done")
+            print(f"  path             {t['name']} ({t['length_m']:.1f} m): {done}; distance "
+                  f"from it {s['path_error_mean_m']:.2f} m mean, {s['path_error_max_m']:.2f} m max")
+        else:
+            print(f"  heading          held at {t['heading_deg']:.1f} deg")
     for name, w in (s.get("feedback_weights") or {}).items():
         print(f"    {name:14s} weight mean {w['mean']:+.2f}, |w| {w['mean_abs']:.2f}, "
               f"saturated {100 * w['saturated_fraction']:.0f}% of the time")

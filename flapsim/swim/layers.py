@@ -81,7 +81,8 @@ class FeedbackLayer:
     array operations, not a re-interpolation.
     """
 
-    def __init__(self, basic: BasicStrokeLayer, reference: np.ndarray | None = None) -> None:
+    def __init__(self, basic: BasicStrokeLayer, reference: np.ndarray | None = None,
+                 target: object | None = None) -> None:
         self.basic = basic
         sw = basic.swimmer
         st = basic.stroke
@@ -127,7 +128,14 @@ class FeedbackLayer:
         self.root = sw.body["pelvis"]
         self.reference = (np.asarray(reference, dtype=float)[:2].copy() if reference is not None
                           else sw.com()[:2])
+        # heading: along the trunk's long axis when prone, its front when upright
+        self.forward_axis = 2 if st.posture == "prone" else 0
+        #: something with ``heading(com_xy, vel_xy) -> rad`` (flapsim.swim.targets), or
+        #: None: hold the start heading
+        self.target = target
+        self.desired_heading = 0.0
         self.weights = {k: 0.0 for k in self.names}
+        self._last_t: float | None = None
         self.history: list[list[float]] = []
 
     @staticmethod
@@ -142,12 +150,23 @@ class FeedbackLayer:
     def update(self, data: mujoco.MjData) -> dict[str, float]:
         """Measure the signals, set each perturbation's weight, blend the targets."""
         sw = self.basic.swimmer
-        values = signals(sw.model, data, self.trunk, self.root, self.reference)
+        if self.target is not None:
+            mujoco.mj_subtreeVel(sw.model, data)
+            com = data.subtree_com[self.root]
+            self.desired_heading = self.target.heading(com[:2].copy(),
+                                                       data.subtree_linvel[self.root][:2].copy())
+        values = signals(sw.model, data, self.trunk, self.root, self.reference,
+                         self.forward_axis, self.desired_heading)
         q = self._q0.copy()
         v = self._v0.copy()
+        now = float(data.time)
+        dt = now - self._last_t if self._last_t is not None else 0.0
+        self._last_t = now
         for i, name in enumerate(self.names):
             p = self.basic.stroke.perturbations[name]
             w = weight(p.gains, p.bias, values)
+            if p.smooth_s > 0.0 and dt > 0.0:
+                w = self.weights[name] + (w - self.weights[name]) * min(1.0, dt / p.smooth_s)
             self.weights[name] = w
             if w > 0:
                 q += w * self._dq[i][0]

@@ -12,12 +12,13 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from flapsim.errors import SimulationError
+from flapsim.errors import InputError, SimulationError
 from flapsim.fluid.flow import FlowField
 from flapsim.sim.callbacks import DISPATCHER
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.strokes import Stroke, load_stroke
+from flapsim.swim.targets import Heading, Path, Point
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +44,8 @@ class SwimResult:
     power: np.ndarray = field(default=None, repr=False)
     #: the feedback layer's weights (see FeedbackLayer.summary); None = basic layer only
     feedback: dict | None = None
+    #: what the swimmer steered for (flapsim.swim.targets), if anything
+    target: object | None = None
     frames: list = field(default_factory=list, repr=False)
 
     def _steady(self) -> np.ndarray:
@@ -89,6 +92,54 @@ class SwimResult:
         peaks = self._cycle_peaks()
         return float(np.mean(peaks > 0)) if len(peaks) else 0.0
 
+    def _target_summary(self) -> dict:
+        t = self.target
+        if t is None:
+            return {}
+        out: dict = {"target": t.describe()}
+        xy = self.com[:, :2]
+        if isinstance(t, Point):
+            d = t.distance(xy)
+            hit = np.flatnonzero(d <= t.radius)
+            out["target_distance_end_m"] = float(d[-1])
+            out["target_distance_min_m"] = float(d.min())
+            out["target_reached_s"] = float(self.times[hit[0]]) if len(hit) else None
+        elif isinstance(t, Path):
+            # distance to the path and progress along it, in order (as the steering saw
+            # it), until the end of the path comes within the look-ahead
+            s_prev, err, prog = 0.0, [], []
+            for p in xy:
+                s, dist = t.project(p, s_prev - 1.0, s_prev + 3.0)
+                s_prev = max(s_prev, s)
+                err.append(dist)
+                prog.append(s_prev)
+            err_a, prog_a = np.asarray(err), np.asarray(prog)
+            done = np.flatnonzero(prog_a >= t.length - t.lookahead)
+            sel = self._steady() & (np.arange(len(prog_a)) < (done[0] if len(done) else len(prog_a)))
+            if not np.any(sel):
+                sel = np.ones(len(prog_a), dtype=bool)
+            out["path_error_mean_m"] = float(err_a[sel].mean())
+            out["path_error_max_m"] = float(err_a[sel].max())
+            out["path_progress_m"] = float(prog_a[-1])
+            out["path_completed_fraction"] = float(min(1.0, prog_a[-1] / t.length))
+            out["path_completed_s"] = float(self.times[done[0]]) if len(done) else None
+        return out
+
+    @property
+    def track_speed(self) -> float:
+        """Mean horizontal speed along the centre of mass's track after the first cycles,
+        whatever its direction [m/s] (sampled once per cycle, so the intra-cycle sway
+        does not count): the speed of a swimmer that turns."""
+        sel = self._steady()
+        t, xy = self.times[sel], self.com[sel, :2]
+        if len(t) < 2:
+            return 0.0
+        k = np.searchsorted(t, np.arange(t[0], t[-1] + 1e-9, 1.0 / self.rate_hz))
+        k = np.unique(np.minimum(k, len(t) - 1))
+        if len(k) < 2:
+            return float(np.linalg.norm(xy[-1] - xy[0]) / max(t[-1] - t[0], 1e-9))
+        return float(np.linalg.norm(np.diff(xy[k], axis=0), axis=1).sum() / (t[k[-1]] - t[k[0]]))
+
     @property
     def distance_per_stroke(self) -> float:
         """Forward distance per cycle [m]."""
@@ -106,6 +157,7 @@ class SwimResult:
             "cycles": self.cycles,
             "speed_m_s": self.speed,
             "mean_speed_whole_run_m_s": self.distance_m / self.seconds,
+            "track_speed_m_s": self.track_speed,
             "distance_m": self.distance_m,
             "distance_per_stroke_m": self.distance_per_stroke,
             "head_height_mean_m": float(head_z[sel].mean()),
@@ -122,6 +174,7 @@ class SwimResult:
             else None,
             "layers": ["basic stroke"] + (["feedback"] if self.feedback is not None else []),
             "feedback_weights": self.feedback,
+            **self._target_summary(),
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
             "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
@@ -140,19 +193,31 @@ def swim(
     progress: bool = False,
     swimmer: Swimmer | None = None,
     feedback: bool = True,
+    target: Heading | Point | Path | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
     ``video_fps`` > 0 also renders frames (offscreen) into ``result.frames``.
     ``feedback``: run the stroke's feedback rules (its ``[perturb.*]`` sections, if
     any) at 50 Hz; False = the basic stroke layer alone.
+    ``target``: steer for a heading, a point or along a path (flapsim.swim.targets);
+    needs a stroke with a feedback rule on ``heading_error`` (crawl, breaststroke).
     """
     st = stroke if isinstance(stroke, Stroke) else load_stroke(stroke)
     sw = swimmer or Swimmer(params, flow)
     layer = BasicStrokeLayer(sw, st, rate_hz)
     sw.reset(st.posture, qpos_joints=layer.start_pose(0.0))
     sw.set_current(np.asarray(current, dtype=float))
-    fb = FeedbackLayer(layer) if (feedback and st.perturbations) else None
+    if target is not None:
+        steers = any("heading_error" in p.gains for p in st.perturbations.values())
+        if not steers:
+            raise InputError(f"stroke {st.name!r} cannot steer: none of its [perturb.*] "
+                             "rules uses heading_error (crawl and breaststroke can)")
+        if not feedback:
+            raise InputError("steering to a target needs the feedback layer (drop --no-feedback)")
+        if isinstance(target, Path):
+            target.reset()
+    fb = FeedbackLayer(layer, target=target) if (feedback and st.perturbations) else None
     m, d = sw.model, sw.data
     dt = m.opt.timestep
     nsteps = int(round(seconds / dt))
@@ -213,7 +278,7 @@ def swim(
     return SwimResult(st.name, nsteps * dt, layer.rate_hz, layer.cycles, np.asarray(times),
                       np.asarray(com), np.asarray(head), wall, sw.params.water_level,
                       power=np.asarray(power), frames=frames,
-                      feedback=fb.summary() if fb is not None else None)
+                      feedback=fb.summary() if fb is not None else None, target=target)
 
 
 def _check(m: mujoco.MjModel, d: mujoco.MjData) -> None:

@@ -92,6 +92,9 @@ class Perturbation:
     #: weight with every signal at zero
     bias: float = 0.0
     description: str = ""
+    #: time constant of a first-order low-pass on the weight [s] (0 = none): lets a
+    #: rule ignore what swings within a stroke cycle (a crawler's yaw with each arm)
+    smooth_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -287,10 +290,16 @@ def _parse_perturbation(name: str, spec: object, mirror: dict, path: str | Path
     where = f"perturb.{name}"
     if not isinstance(spec, dict):
         raise DataFileError(f"{path}: [{where}] must be a table")
-    unknown = set(spec) - {"keys", "feedback", "description", "mirror"}
+    unknown = set(spec) - {"keys", "feedback", "description", "mirror", "smooth_s"}
     if unknown:
         raise DataFileError(f"{path}: [{where}] has unknown entries {sorted(unknown)}; "
-                            "allowed: keys, feedback, description, mirror")
+                            "allowed: keys, feedback, description, mirror, smooth_s")
+    try:
+        smooth = float(spec.get("smooth_s", 0.0))
+    except (TypeError, ValueError):
+        smooth = -1.0
+    if not (0.0 <= smooth <= 60.0):
+        raise DataFileError(f"{path}: {where}.smooth_s must be 0..60 s")
     # its own [perturb.NAME.mirror] (e.g. scale = -1: the other side does the opposite)
     # replaces the stroke's mirror table for this perturbation
     keys = _parse_keys(spec.get("keys", {}), spec.get("mirror", mirror), path, f"{where}.keys")
@@ -311,7 +320,7 @@ def _parse_perturbation(name: str, spec: object, mirror: dict, path: str | Path
                             f"{', '.join(SIGNALS)} (and bias)")
     if not all(np.isfinite(list(gains.values()) + [bias])):
         raise DataFileError(f"{path}: {where}.feedback gains must be finite")
-    return Perturbation(name, keys, gains, bias, str(spec.get("description", "")))
+    return Perturbation(name, keys, gains, bias, str(spec.get("description", "")), smooth)
 
 
 # -- joint targets ---------------------------------------------------------------------

@@ -65,9 +65,9 @@ def test_crawl_meets_the_human_range(crawl):
     # to breathe), never more than 0.1 m under; its centre clears the water every cycle
     assert crawl["head_height_min_m"] > -0.1
     assert crawl["breathing_cycles_fraction"] >= 0.9
-    # breathing to one side curves the path a little: measured 0.6 m sideways over
-    # 18.8 m; the heading must stay within ~6 deg of the start on average
-    assert abs(crawl["lateral_drift_m"]) < 0.1 * crawl["distance_m"]
+    # breathing to one side would curve the path (0.6 m sideways over 18.8 m open
+    # loop); the stroke's turn rule holds the heading: measured 0.06 m, allowed ~3 deg
+    assert abs(crawl["lateral_drift_m"]) < 0.05 * crawl["distance_m"]
 
 
 def test_breaststroke_meets_the_human_range(breaststroke):

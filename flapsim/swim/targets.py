@@ -1,0 +1,177 @@
+"""Where a swimmer should go: a heading, a point, or a path to follow.
+
+A target answers ``heading(com_xy, vel_xy) -> rad``, the horizontal direction to swim
+in now; the feedback layer (:class:`flapsim.swim.layers.FeedbackLayer`) turns the
+difference to the swimmer's heading into the stroke's ``turn`` perturbation. World
+coordinates: the swimmer starts at the origin facing +x, the water surface at z = 0.
+
+Path files are plain text, one ``x, y`` point [m] per line (commas or spaces; ``#``
+comments and a non-numeric header line are allowed), e.g. exported from a spreadsheet.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path as FilePath
+
+import numpy as np
+
+from flapsim.errors import DataFileError, InputError
+
+
+@dataclass
+class Heading:
+    """Hold a fixed heading [rad, from +x towards +y]."""
+
+    angle: float = 0.0
+
+    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray) -> float:
+        return self.angle
+
+    def describe(self) -> dict:
+        return {"kind": "heading", "heading_deg": math.degrees(self.angle)}
+
+
+@dataclass
+class Point:
+    """Swim to a point [m]; ``reached`` within ``radius`` [m]."""
+
+    x: float
+    y: float
+    radius: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.x) and math.isfinite(self.y)):
+            raise InputError(f"target point must be finite, got ({self.x}, {self.y})")
+        if not self.radius > 0:
+            raise InputError("target radius must be > 0 m")
+
+    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray) -> float:
+        return math.atan2(self.y - com_xy[1], self.x - com_xy[0])
+
+    def distance(self, com_xy: np.ndarray) -> np.ndarray:
+        """Distance(s) [m] from centre-of-mass position(s) (..., 2) to the point."""
+        return np.linalg.norm(np.asarray(com_xy)[..., :2] - (self.x, self.y), axis=-1)
+
+    def describe(self) -> dict:
+        return {"kind": "point", "x_m": self.x, "y_m": self.y, "radius_m": self.radius}
+
+
+@dataclass
+class Path:
+    """Follow a polyline (n, 2) [m]: steer at the point ``lookahead`` [m] further along
+    the path than the closest one (the flight paper's pure-pursuit look-ahead). The
+    closest point is searched only a little behind and ahead of the last one, so that
+    a path that crosses itself (a figure of eight) is followed in order."""
+
+    points: np.ndarray
+    lookahead: float = 2.0
+    name: str = "path"
+    _s: float = field(default=0.0, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        p = np.asarray(self.points, dtype=float)
+        if p.ndim != 2 or p.shape[1] != 2 or len(p) < 2:
+            raise InputError(f"a path needs at least two (x, y) points, got shape {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise InputError("path points must be finite")
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        keep = np.concatenate([[True], seg > 1e-9])  # drop repeated points
+        self.points = p[keep]
+        if len(self.points) < 2:
+            raise InputError("a path needs two distinct points")
+        seg = np.linalg.norm(np.diff(self.points, axis=0), axis=1)
+        self.cum = np.concatenate([[0.0], np.cumsum(seg)])
+        if not self.lookahead > 0:
+            raise InputError("path look-ahead must be > 0 m")
+
+    @property
+    def length(self) -> float:
+        return float(self.cum[-1])
+
+    def at(self, s: float) -> np.ndarray:
+        """The point at arc length ``s`` [m] (clamped to the ends)."""
+        s = min(max(s, 0.0), self.length)
+        i = int(np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.cum) - 2))
+        f = (s - self.cum[i]) / (self.cum[i + 1] - self.cum[i])
+        return self.points[i] + f * (self.points[i + 1] - self.points[i])
+
+    def project(self, xy: np.ndarray, s_lo: float = 0.0, s_hi: float = math.inf
+                ) -> tuple[float, float]:
+        """(arc length, distance) of the closest path point to ``xy`` with arc length in
+        [s_lo, s_hi]."""
+        a, b = self.points[:-1], self.points[1:]
+        ab = b - a
+        t = np.clip(np.einsum("ij,ij->i", xy - a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+        s = self.cum[:-1] + t * (self.cum[1:] - self.cum[:-1])
+        ok = (self.cum[1:] >= s_lo) & (self.cum[:-1] <= s_hi)
+        s = np.clip(s, s_lo, s_hi)
+        # the clamped arc lengths' points, for segments partly inside the window
+        pts = np.array([self.at(v) for v in s[ok]])
+        d = np.linalg.norm(pts - xy, axis=1)
+        k = int(np.argmin(d))
+        return float(s[ok][k]), float(d[k])
+
+    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray) -> float:
+        s, _ = self.project(np.asarray(com_xy, dtype=float), self._s - 1.0, self._s + 3.0)
+        self._s = max(self._s, s)
+        aim = self.at(self._s + self.lookahead)
+        return math.atan2(aim[1] - com_xy[1], aim[0] - com_xy[0])
+
+    def reset(self) -> None:
+        self._s = 0.0
+
+    def describe(self) -> dict:
+        return {"kind": "path", "name": self.name, "points": len(self.points),
+                "length_m": self.length, "lookahead_m": self.lookahead}
+
+
+def figure_eight(radius: float = 6.0, n: int = 200, lookahead: float = 2.0) -> Path:
+    """A figure of eight from the origin heading +x: a loop of ``radius`` [m] turning left
+    (centre (0, r)), then one turning right (centre (0, -r)), back to the origin."""
+    if not (0.5 <= radius <= 1000.0):
+        raise InputError(f"figure-of-eight radius must be 0.5..1000 m, got {radius}")
+    t = np.linspace(0.0, 2.0 * math.pi, n // 2, endpoint=False)
+    left = np.column_stack([radius * np.sin(t), radius * (1.0 - np.cos(t))])
+    right = np.column_stack([radius * np.sin(t), -radius * (1.0 - np.cos(t))])
+    pts = np.vstack([left, right, [[0.0, 0.0]]])
+    return Path(pts, lookahead, name=f"figure-of-eight r={radius:g} m")
+
+
+def load_path(path: str, lookahead: float = 2.0) -> Path:
+    """Read a path file (see the module docstring); one-line errors name the bad line."""
+    p = FilePath(path)
+    if not p.is_file():
+        raise DataFileError(f"path file {p} does not exist")
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataFileError(f"cannot read path file {p} as text ({exc})") from None
+    pts = []
+    first = True
+    for lineno, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.replace(",", " ").split()
+        try:
+            vals = [float(x) for x in parts]
+        except ValueError:
+            if first:  # a header line
+                first = False
+                continue
+            raise DataFileError(f"{p} line {lineno}: expected 'x, y' numbers, got {line!r}"
+                                ) from None
+        first = False
+        if len(vals) != 2:
+            raise DataFileError(f"{p} line {lineno}: expected 2 numbers (x, y), got {len(vals)}")
+        if not all(math.isfinite(v) for v in vals):
+            raise DataFileError(f"{p} line {lineno}: non-finite coordinate")
+        pts.append(vals)
+    if len(pts) < 2:
+        raise DataFileError(f"{p}: a path needs at least two points, found {len(pts)}")
+    try:
+        return Path(np.asarray(pts), lookahead, name=p.name)
+    except InputError as exc:
+        raise DataFileError(f"{p}: {exc}") from None
