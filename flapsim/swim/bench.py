@@ -11,6 +11,7 @@ import mujoco
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer
 from flapsim.swim.strokes import load_stroke
+from flapsim.swim.targets import figure_eight
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -34,7 +35,17 @@ def run(args: argparse.Namespace) -> dict:
             mujoco.mj_step(m, d)
 
     tread = BasicStrokeLayer(sw, load_stroke("treading"))
+    crawl = BasicStrokeLayer(sw, load_stroke("crawl"))
     feedback: list[FeedbackLayer] = []
+    steering: list[FeedbackLayer] = []
+
+    def with_steering(n: int) -> None:
+        for i in range(n):
+            if i % 5 == 0:
+                sw.update_flow()
+                steering[0].update(d)
+            crawl.apply(d, dt)
+            mujoco.mj_step(m, d)
 
     def with_feedback(n: int) -> None:
         for i in range(n):
@@ -45,7 +56,13 @@ def run(args: argparse.Namespace) -> dict:
             mujoco.mj_step(m, d)
 
     def start(label: str) -> None:
-        if label == "treading_feedback":
+        if label == "crawl_figure8":
+            sw.reset("prone", qpos_joints=crawl.start_pose(0.0))
+            crawl.phase = 0.0
+            if not steering:
+                steering.append(FeedbackLayer(crawl, target=figure_eight(6.0)))
+            steering[0].target.reset()
+        elif label == "treading_feedback":
             sw.reset("upright", qpos_joints=tread.start_pose(0.0))
             tread.phase = 0.0
             if not feedback:
@@ -56,13 +73,14 @@ def run(args: argparse.Namespace) -> dict:
 
     out = {}
     for label, fn, providers in (("bare_mj_step", bare, False), ("swimmer", full, True),
-                                 ("treading_feedback", with_feedback, True)):
+                                 ("treading_feedback", with_feedback, True),
+                                 ("crawl_figure8", with_steering, True)):
         if providers:
             sw.attach()
         start(label)
         fn(50)  # warm-up (numba compile, caches)
         steps, wall = 0, 0.0
-        while wall < seconds / 3:
+        while wall < seconds / 4:
             # every chunk restarts from the same pose, so all runs see the same states
             # (a limp, unforced swimmer would otherwise sink onto the pool floor)
             start(label)
@@ -77,6 +95,7 @@ def run(args: argparse.Namespace) -> dict:
             sw.detach()
     ratio = out["swimmer"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
     ratio_fb = out["treading_feedback"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
+    ratio_st = out["crawl_figure8"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
     result = {
         "benchmark": "swimmer",
         "timestep_s": dt,
@@ -87,6 +106,8 @@ def run(args: argparse.Namespace) -> dict:
         "treading_feedback": out["treading_feedback"],
         "cost_vs_bare_step": ratio,
         "treading_feedback_cost_vs_bare_step": ratio_fb,
+        "crawl_figure8": out["crawl_figure8"],
+        "crawl_figure8_cost_vs_bare_step": ratio_st,
         "target_realtime_factor": 20.0,
     }
     print(f"swimmer: {len(sw.polygons)} polygons, {result['ellipsoids']} buoyancy ellipsoids, "
@@ -99,4 +120,7 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  treading + feedback layer (50 Hz) {out['treading_feedback']['us_per_step']:.1f} "
           f"us/step ({out['treading_feedback']['realtime_factor']:.1f}x real time, "
           f"{ratio_fb:.2f}x bare)")
+    print(f"  crawl steering along a figure of eight {out['crawl_figure8']['us_per_step']:.1f} "
+          f"us/step ({out['crawl_figure8']['realtime_factor']:.1f}x real time, "
+          f"{ratio_st:.2f}x bare)")
     return result

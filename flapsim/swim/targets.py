@@ -101,17 +101,19 @@ class Path:
                 ) -> tuple[float, float]:
         """(arc length, distance) of the closest path point to ``xy`` with arc length in
         [s_lo, s_hi]."""
-        a, b = self.points[:-1], self.points[1:]
+        i0 = max(0, int(np.searchsorted(self.cum, s_lo, side="right")) - 1)
+        i1 = min(len(self.cum), int(np.searchsorted(self.cum, s_hi, side="left")) + 1)
+        a, b = self.points[i0:i1 - 1], self.points[i0 + 1:i1]
+        c0, c1 = self.cum[i0:i1 - 1], self.cum[i0 + 1:i1]
         ab = b - a
         t = np.clip(np.einsum("ij,ij->i", xy - a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
-        s = self.cum[:-1] + t * (self.cum[1:] - self.cum[:-1])
-        ok = (self.cum[1:] >= s_lo) & (self.cum[:-1] <= s_hi)
-        s = np.clip(s, s_lo, s_hi)
-        # the clamped arc lengths' points, for segments partly inside the window
-        pts = np.array([self.at(v) for v in s[ok]])
+        # keep each segment's closest point inside the arc-length window
+        s = np.clip(c0 + t * (c1 - c0), s_lo, s_hi)
+        t = np.clip((s - c0) / (c1 - c0), 0, 1)
+        pts = a + t[:, None] * ab
         d = np.linalg.norm(pts - xy, axis=1)
         k = int(np.argmin(d))
-        return float(s[ok][k]), float(d[k])
+        return float(c0[k] + t[k] * (c1[k] - c0[k])), float(d[k])
 
     def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray) -> float:
         s, _ = self.project(np.asarray(com_xy, dtype=float), self._s - 1.0, self._s + 3.0)

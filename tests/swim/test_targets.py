@@ -19,6 +19,11 @@ def test_path_geometry():
     assert np.allclose(p.at(5.0), (3.0, 2.0))
     s, d = p.project(np.array([1.0, 0.5]))
     assert s == pytest.approx(1.0) and d == pytest.approx(0.5)
+    s, d = p.project(np.array([4.0, 3.5]))  # beside the last segment
+    assert s == pytest.approx(6.5) and d == pytest.approx(1.0)
+    # a window keeps the answer inside it: the closest point with s in [0, 2]
+    s, d = p.project(np.array([4.0, 3.5]), 0.0, 2.0)
+    assert s == pytest.approx(2.0) and d == pytest.approx(math.hypot(2.0, 3.5))
     # aim one look-ahead past the closest point: from (1, 0.5) at (2, 0)
     assert p.heading(np.array([1.0, 0.5]), np.zeros(2)) == pytest.approx(math.atan2(-0.5, 1.0))
 
