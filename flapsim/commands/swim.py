@@ -67,6 +67,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timestep", type=float, default=None, help="physics step [s] (default 0.004)")
     p.add_argument("--video", metavar="PATH", nargs="?", const="swim.mp4", default=None,
                    help="also write an mp4 video (default file swim.mp4)")
+    p.add_argument("--out", metavar="PATH",
+                   help="write the track (.npz: time, com, head, muscle_power [SI], and "
+                        "target_path, the path followed, if any)")
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
 
 
@@ -124,12 +127,24 @@ def run(args: argparse.Namespace) -> dict:
     video = args.video
     if video is not None and not str(video).endswith(".mp4"):
         raise InputError(f"--video must name an .mp4 file, got {video!r}")
+    if args.out and not str(args.out).endswith(".npz"):
+        raise InputError(f"--out must name an .npz file, got {args.out!r}")
     result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=_flow(args),
                   current=_vec3(args.current, "--current"),
                   video_fps=args.fps if video else 0.0, progress=True,
                   feedback=not args.no_feedback, target=_target(args))
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    if args.out:
+        from flapsim.io import save_npz
+        from flapsim.swim.targets import Path
+
+        extra = {}
+        if isinstance(result.target, Path):
+            extra["target_path"] = result.target.points
+        save_npz(args.out, time=result.times, com=result.com, head=result.head,
+                 muscle_power=result.power, **extra)
+        s["out"] = str(args.out)
     if video:
         import imageio.v2 as imageio
 
@@ -175,4 +190,6 @@ def run(args: argparse.Namespace) -> dict:
               f"saturated {100 * w['saturated_fraction']:.0f}% of the time")
     if video:
         print(f"  video            {video}")
+    if args.out:
+        print(f"  track            {args.out}")
     return s

@@ -1,0 +1,43 @@
+"""``flapsim swim`` end to end: JSON, the track file, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from flapsim import cli
+
+
+def test_swim_command_writes_json_and_track(tmp_path, capsys):
+    out_json, out_npz = tmp_path / "s.json", tmp_path / "t.npz"
+    rc = cli.main(["swim", "--stroke", "crawl", "--seconds", "4", "--figure8", "6",
+                   "--json", str(out_json), "--out", str(out_npz)])
+    assert rc == 0
+    s = json.loads(out_json.read_text())
+    assert s["command"] == "swim" and s["stroke"] == "crawl"
+    assert s["target"]["kind"] == "path" and s["layers"] == ["basic stroke", "feedback"]
+    # 4 s at 50 samples/s, from rest: a crawler is under way (measured 0.6 m/s average)
+    assert 0.3 < s["track_speed_m_s"] < 2.0
+    z = np.load(out_npz)
+    assert z["com"].shape == (201, 3) and z["target_path"].shape[1] == 2
+    assert np.all(np.isfinite(z["muscle_power"]))
+    assert "path" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--target", "1,2,3"], "two finite"),
+    (["--path", "/no/such/path.csv"], "does not exist"),
+    (["--out", "track.txt"], ".npz"),
+    (["--stroke", "treading", "--target", "1,0"], "cannot steer"),
+    (["--stroke", "butterfly"], "unknown stroke"),
+    (["--seconds", "-1"], "--seconds"),
+])
+def test_swim_command_bad_input_is_one_line(tmp_path, capsys, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)
+    rc = cli.main(["swim", "--seconds", "1", *argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert len(err) >= 1 and message in err[-1] and "Traceback" not in "".join(err)
+    assert list(tmp_path.iterdir()) == []  # nothing half-written
