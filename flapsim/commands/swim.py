@@ -61,6 +61,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "heading)")
     p.add_argument("--lookahead", type=float, default=2.0,
                    help="path following: steer at the point this far along the path [m]")
+    p.add_argument("--viewer", action="store_true",
+                   help="watch and steer in the MuJoCo viewer, in real time: arrow keys move the "
+                        "target (default 10 m ahead), PgUp/PgDn change the stroke rate; needs a "
+                        "display")
     p.add_argument("--no-feedback", action="store_true",
                    help="run the basic stroke layer alone: ignore the stroke's feedback rules "
                         "(treading water then tips over)")
@@ -129,12 +133,42 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--video must name an .mp4 file, got {video!r}")
     if args.out and not str(args.out).endswith(".npz"):
         raise InputError(f"--out must name an .npz file, got {args.out!r}")
-    result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=_flow(args),
-                  current=_vec3(args.current, "--current"),
-                  video_fps=args.fps if video else 0.0, progress=True,
-                  feedback=not args.no_feedback, target=_target(args))
+    target = _target(args)
+    flow = _flow(args)
+    current = _vec3(args.current, "--current")
+    viewer = None
+    swimmer = None
+    if args.viewer:
+        from flapsim.swim.model import Swimmer
+        from flapsim.swim.strokes import load_stroke
+        from flapsim.swim.targets import Point
+        from flapsim.swim.viewer import SwimViewer, check_display
+
+        check_display()
+        if target is not None and not isinstance(target, Point):
+            raise InputError("the viewer steers for a point you move: use --target X,Y (or "
+                             "nothing: 10 m ahead), not --path/--figure8/--heading")
+        steers = any("heading_error" in p.gains
+                     for p in load_stroke(args.stroke).perturbations.values())
+        marker = target if target is not None else Point(10.0, 0.0)
+        target = marker if steers and not args.no_feedback else None
+        swimmer = Swimmer(params, flow)
+        viewer = SwimViewer(swimmer, marker)
+    try:
+        result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
+                      current=current, video_fps=args.fps if video else 0.0,
+                      progress=viewer is None, feedback=not args.no_feedback, target=target,
+                      swimmer=swimmer, control_hook=viewer)
+    finally:
+        if viewer is not None:
+            viewer.close()
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    if viewer is not None:
+        rates = [e["rate_hz"] for e in viewer.events if "rate_hz" in e]
+        s["viewer"] = {"events": viewer.events,
+                       "final_target": [viewer.target.x, viewer.target.y],
+                       "final_rate_hz": rates[-1] if rates else s["stroke_rate_hz"]}
     if args.out:
         from flapsim.io import save_npz
         from flapsim.swim.targets import Path

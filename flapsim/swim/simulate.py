@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import mujoco
@@ -194,6 +195,7 @@ def swim(
     swimmer: Swimmer | None = None,
     feedback: bool = True,
     target: Heading | Point | Path | None = None,
+    control_hook: Callable[[Swimmer, BasicStrokeLayer], bool] | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
@@ -202,6 +204,8 @@ def swim(
     any) at 50 Hz; False = the basic stroke layer alone.
     ``target``: steer for a heading, a point or along a path (flapsim.swim.targets);
     needs a stroke with a feedback rule on ``heading_error`` (crawl, breaststroke).
+    ``control_hook(swimmer, layer)`` runs at every control step (50 Hz) after the
+    layers; returning False ends the swim early (the viewer uses it).
     """
     st = stroke if isinstance(stroke, Stroke) else load_stroke(stroke)
     sw = swimmer or Swimmer(params, flow)
@@ -264,6 +268,14 @@ def swim(
                         fb.update(d)
                     if bar is not None and i:
                         bar.update(control_every)
+                    if control_hook is not None and not control_hook(sw, layer):
+                        nsteps = i  # stopped early: what was swum so far is the result
+                        if times[-1] != d.time:
+                            times.append(d.time)
+                            com.append(d.subtree_com[pelvis].copy())
+                            head.append(d.geom_xpos[head_gid].copy())
+                            power.append(power[-1])
+                        break
                 layer.apply(d, dt)
                 mujoco.mj_step(m, d)
                 if i % 500 == 0:
