@@ -15,14 +15,16 @@ from flapsim.swim.simulate import swim
 HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate and floating height"
 
 
-def _vec3(text: str, what: str) -> tuple[float, float, float]:
+def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
+    """``n`` comma-separated finite numbers, or a one-line error naming ``what``."""
+    count = {2: "two", 3: "three"}.get(n, str(n))
     try:
         v = tuple(float(x) for x in text.split(","))
     except ValueError:
-        raise InputError(f"{what} must be three comma-separated numbers, got {text!r}") from None
-    if len(v) != 3 or not np.all(np.isfinite(v)):
-        raise InputError(f"{what} must be three finite comma-separated numbers, got {text!r}")
-    return v  # type: ignore[return-value]
+        raise InputError(f"{what} must be {count} comma-separated numbers, got {text!r}") from None
+    if len(v) != n or not np.all(np.isfinite(v)):
+        raise InputError(f"{what} must be {count} finite comma-separated numbers, got {text!r}")
+    return v
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -96,7 +98,7 @@ def _target(args: argparse.Namespace):
     from flapsim.swim.targets import Heading, Point, figure_eight, load_path
 
     if args.target is not None:
-        x, y = _vec2(args.target, "--target")
+        x, y = _vec(args.target, "--target", 2)
         return Point(x, y)
     if args.path is not None:
         return load_path(args.path, args.lookahead)
@@ -107,16 +109,6 @@ def _target(args: argparse.Namespace):
             raise InputError("--heading must be a finite angle in degrees")
         return Heading(np.radians(args.heading))
     return None
-
-
-def _vec2(text: str, what: str) -> tuple[float, float]:
-    try:
-        v = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        raise InputError(f"{what} must be two comma-separated numbers, got {text!r}") from None
-    if len(v) != 2 or not np.all(np.isfinite(v)):
-        raise InputError(f"{what} must be two finite comma-separated numbers, got {text!r}")
-    return v  # type: ignore[return-value]
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -135,7 +127,7 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--out must name an .npz file, got {args.out!r}")
     target = _target(args)
     flow = _flow(args)
-    current = _vec3(args.current, "--current")
+    current = _vec(args.current, "--current", 3)
     viewer = None
     swimmer = None
     if args.viewer:

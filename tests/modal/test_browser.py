@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -68,58 +67,30 @@ def test_cli_sheet(tmp_path):
     assert main(["animate", "--gait", "trot", "--sheet", str(tmp_path / "x.jpg")]) == 2
 
 
-def _free_display() -> int:
-    for n in range(91, 140):
-        if not Path(f"/tmp/.X{n}-lock").exists() and not Path(f"/tmp/.X11-unix/X{n}").exists():
-            return n
-    raise RuntimeError("no free X display number in :91-:139")
-
-
-@pytest.mark.skipif(shutil.which("Xvfb") is None or shutil.which("xdotool") is None,
-                    reason="Xvfb and xdotool are needed to open the window on a virtual display")
-def test_window_opens_under_xvfb(tmp_path):
-    n = _free_display()
-    xvfb = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    app = None
-    try:
-        for _ in range(200):
-            if Path(f"/tmp/.X11-unix/X{n}").exists():
-                break
-            time.sleep(0.05)
-        assert Path(f"/tmp/.X11-unix/X{n}").exists(), "Xvfb did not start within 10 s"
-        env = dict(os.environ, DISPLAY=f":{n}", PYTHONPATH=str(REPO))
-        env.pop("MUJOCO_GL", None)
-        env.pop("PYVISTA_OFF_SCREEN", None)
-        marker = tmp_path / "opened"
-        app = subprocess.Popen(
-            [sys.executable, "-m", "flapsim.modal.browser", "--gait", "walk", "--seconds", "4",
-             "--marker", str(marker)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 40
-        while not marker.exists() and time.monotonic() < deadline and app.poll() is None:
-            time.sleep(0.1)
-        assert marker.exists(), app.communicate(timeout=10)[0].decode()[-2000:]
-        windows = []
-        for _ in range(20):  # the title may be set a moment after the window maps
-            found = subprocess.run(["xdotool", "search", "--name", WINDOW_TITLE], env=env,
-                                   capture_output=True, text=True, timeout=10)
-            windows = found.stdout.split()
-            if windows:
-                break
-            time.sleep(0.1)
-        out = app.communicate(timeout=60)[0].decode()
-        assert windows, f"no window titled {WINDOW_TITLE!r} on the display; log: {out[-1500:]}"
-        assert app.returncode == 0, out[-2000:]
-        pid, frames, closed = marker.read_text().split()
-        # It animated while open: the timer redraws at up to 30 frames/s for 4 s; under
-        # software GL on a loaded 2-core box a redraw may take ~0.3 s, so demand only 3.
-        assert closed == "closed" and int(frames) >= 3, marker.read_text()
-    finally:
-        for proc in (app, xvfb):
-            if proc is not None and proc.poll() is None:
-                proc.terminate()  # SIGTERM lets Xvfb remove its lock file and socket
-                try:
-                    proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait(timeout=10)
+def test_window_opens_under_xvfb(tmp_path, xvfb_display):
+    env = dict(os.environ, DISPLAY=xvfb_display.name, PYTHONPATH=str(REPO))
+    env.pop("MUJOCO_GL", None)
+    env.pop("PYVISTA_OFF_SCREEN", None)
+    marker = tmp_path / "opened"
+    app = xvfb_display.spawn(
+        [sys.executable, "-m", "flapsim.modal.browser", "--gait", "walk", "--seconds", "4",
+         "--marker", str(marker)], env)
+    deadline = time.monotonic() + 40
+    while not marker.exists() and time.monotonic() < deadline and app.poll() is None:
+        time.sleep(0.1)
+    assert marker.exists(), app.communicate(timeout=10)[0].decode()[-2000:]
+    windows = []
+    for _ in range(20):  # the title may be set a moment after the window maps
+        found = subprocess.run(["xdotool", "search", "--name", WINDOW_TITLE], env=env,
+                               capture_output=True, text=True, timeout=10)
+        windows = found.stdout.split()
+        if windows:
+            break
+        time.sleep(0.1)
+    out = app.communicate(timeout=60)[0].decode()
+    assert windows, f"no window titled {WINDOW_TITLE!r} on the display; log: {out[-1500:]}"
+    assert app.returncode == 0, out[-2000:]
+    pid, frames, closed = marker.read_text().split()
+    # It animated while open: the timer redraws at up to 30 frames/s for 4 s; under
+    # software GL on a loaded 2-core box a redraw may take ~0.3 s, so demand only 3.
+    assert closed == "closed" and int(frames) >= 3, marker.read_text()
