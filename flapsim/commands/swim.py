@@ -17,7 +17,7 @@ HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate an
 
 def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
     """``n`` comma-separated finite numbers, or a one-line error naming ``what``."""
-    count = {2: "two", 3: "three"}.get(n, str(n))
+    count = {2: "two", 3: "three", 4: "four"}.get(n, str(n))
     try:
         v = tuple(float(x) for x in text.split(","))
     except ValueError:
@@ -25,6 +25,25 @@ def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
     if len(v) != n or not np.all(np.isfinite(v)):
         raise InputError(f"{what} must be {count} finite comma-separated numbers, got {text!r}")
     return v
+
+
+def add_target_arguments(p: argparse.ArgumentParser) -> None:
+    """What to steer for (shared with ``flapsim sweep``)."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--target", metavar="X,Y",
+                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke")
+    g.add_argument("--path", metavar="FILE",
+                   help="follow a path: a text file of 'x, y' points [m], one per line")
+    g.add_argument("--figure8", type=float, metavar="R",
+                   help="follow a figure of eight of loop radius R [m] (>= ~4 m: the crawl's "
+                        "turning circle is ~3.5 m)")
+    g.add_argument("--moving-target", metavar="X,Y,VX,VY",
+                   help="swim after a point starting at X,Y [m] moving at VX,VY [m/s]")
+    g.add_argument("--heading", type=float, metavar="DEG",
+                   help="hold this heading [deg from +x towards +y] (default: hold the start "
+                        "heading)")
+    p.add_argument("--lookahead", type=float, default=2.0,
+                   help="path following: steer at the point this far along the path [m]")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -50,19 +69,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="add a point source at X,Y,Z of strength Q [m^3/s] (repeatable)")
     p.add_argument("--vortex", action="append", default=[], metavar="X,Y,GAMMA",
                    help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--target", metavar="X,Y",
-                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke")
-    g.add_argument("--path", metavar="FILE",
-                   help="follow a path: a text file of 'x, y' points [m], one per line")
-    g.add_argument("--figure8", type=float, metavar="R",
-                   help="follow a figure of eight of loop radius R [m] (>= ~4 m: the crawl's "
-                        "turning circle is ~3.5 m)")
-    g.add_argument("--heading", type=float, metavar="DEG",
-                   help="hold this heading [deg from +x towards +y] (default: hold the start "
-                        "heading)")
-    p.add_argument("--lookahead", type=float, default=2.0,
-                   help="path following: steer at the point this far along the path [m]")
+    add_target_arguments(p)
     p.add_argument("--viewer", action="store_true",
                    help="watch and steer in the MuJoCo viewer, in real time: arrow keys move the "
                         "target (default 10 m ahead), PgUp/PgDn change the stroke rate; needs a "
@@ -94,12 +101,16 @@ def _flow(args: argparse.Namespace) -> FlowField:
     return FlowField(prims)
 
 
-def _target(args: argparse.Namespace):
+def target_from_args(args: argparse.Namespace):
+    """The target the target arguments name, or None."""
     from flapsim.swim.targets import Heading, Point, figure_eight, load_path
 
     if args.target is not None:
         x, y = _vec(args.target, "--target", 2)
         return Point(x, y)
+    if args.moving_target is not None:
+        x, y, vx, vy = _vec(args.moving_target, "--moving-target", 4)
+        return Point(x, y, vx=vx, vy=vy)
     if args.path is not None:
         return load_path(args.path, args.lookahead)
     if args.figure8 is not None:
@@ -125,7 +136,7 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--video must name an .mp4 file, got {video!r}")
     if args.out and not str(args.out).endswith(".npz"):
         raise InputError(f"--out must name an .npz file, got {args.out!r}")
-    target = _target(args)
+    target = target_from_args(args)
     flow = _flow(args)
     current = _vec(args.current, "--current", 3)
     viewer = None

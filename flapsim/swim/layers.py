@@ -154,7 +154,8 @@ class FeedbackLayer:
             mujoco.mj_subtreeVel(sw.model, data)
             com = data.subtree_com[self.root]
             self.desired_heading = self.target.heading(com[:2].copy(),
-                                                       data.subtree_linvel[self.root][:2].copy())
+                                                       data.subtree_linvel[self.root][:2].copy(),
+                                                       float(data.time))
         values = signals(sw.model, data, self.trunk, self.root, self.reference,
                          self.forward_axis, self.desired_heading)
         q = self._q0.copy()

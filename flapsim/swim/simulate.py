@@ -100,11 +100,13 @@ class SwimResult:
         out: dict = {"target": t.describe()}
         xy = self.com[:, :2]
         if isinstance(t, Point):
-            d = t.distance(xy)
+            d = t.distance(xy, self.times)
             hit = np.flatnonzero(d <= t.radius)
             out["target_distance_end_m"] = float(d[-1])
             out["target_distance_min_m"] = float(d.min())
             out["target_reached_s"] = float(self.times[hit[0]]) if len(hit) else None
+            sel = self._steady()
+            out["target_distance_mean_m"] = float(d[sel].mean())
         elif isinstance(t, Path):
             # distance to the path and progress along it, in order (as the steering saw
             # it), until the end of the path comes within the look-ahead

@@ -1,8 +1,9 @@
 """Where a swimmer should go: a heading, a point, or a path to follow.
 
-A target answers ``heading(com_xy, vel_xy) -> rad``, the horizontal direction to swim
-in now; the feedback layer (:class:`flapsim.swim.layers.FeedbackLayer`) turns the
-difference to the swimmer's heading into the stroke's ``turn`` perturbation. World
+A target answers ``heading(com_xy, vel_xy, t) -> rad``, the horizontal direction to
+swim in now (``t``: simulated time [s]); the feedback layer
+(:class:`flapsim.swim.layers.FeedbackLayer`) turns the difference to the swimmer's
+heading into the stroke's ``turn`` perturbation. World
 coordinates: the swimmer starts at the origin facing +x, the water surface at z = 0.
 
 Path files are plain text, one ``x, y`` point [m] per line (commas or spaces; ``#``
@@ -26,7 +27,7 @@ class Heading:
 
     angle: float = 0.0
 
-    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray) -> float:
+    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray, t: float = 0.0) -> float:
         return self.angle
 
     def describe(self) -> dict:
@@ -35,27 +36,41 @@ class Heading:
 
 @dataclass
 class Point:
-    """Swim to a point [m]; ``reached`` within ``radius`` [m]."""
+    """Swim to a point [m], which may move at a constant velocity (``vx``, ``vy``) [m/s]
+    (the paper's horizontally moving target); ``reached`` within ``radius`` [m]."""
 
     x: float
     y: float
     radius: float = 0.5
+    vx: float = 0.0
+    vy: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.x) and math.isfinite(self.y)):
-            raise InputError(f"target point must be finite, got ({self.x}, {self.y})")
+        if not all(math.isfinite(v) for v in (self.x, self.y, self.vx, self.vy)):
+            raise InputError(f"target point and velocity must be finite, got ({self.x}, "
+                             f"{self.y}) moving ({self.vx}, {self.vy})")
         if not self.radius > 0:
             raise InputError("target radius must be > 0 m")
 
-    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray) -> float:
-        return math.atan2(self.y - com_xy[1], self.x - com_xy[0])
+    def at(self, t: float | np.ndarray) -> np.ndarray:
+        """Where the point is at time(s) ``t`` [s]: (..., 2)."""
+        t = np.asarray(t, dtype=float)[..., None]
+        return np.array([self.x, self.y]) + t * np.array([self.vx, self.vy])
 
-    def distance(self, com_xy: np.ndarray) -> np.ndarray:
-        """Distance(s) [m] from centre-of-mass position(s) (..., 2) to the point."""
-        return np.linalg.norm(np.asarray(com_xy)[..., :2] - (self.x, self.y), axis=-1)
+    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray, t: float = 0.0) -> float:
+        px, py = self.at(t)
+        return math.atan2(py - com_xy[1], px - com_xy[0])
+
+    def distance(self, com_xy: np.ndarray, t: float | np.ndarray = 0.0) -> np.ndarray:
+        """Distance(s) [m] from centre-of-mass position(s) (..., 2) to the point at
+        time(s) ``t``."""
+        return np.linalg.norm(np.asarray(com_xy)[..., :2] - self.at(t), axis=-1)
 
     def describe(self) -> dict:
-        return {"kind": "point", "x_m": self.x, "y_m": self.y, "radius_m": self.radius}
+        out = {"kind": "point", "x_m": self.x, "y_m": self.y, "radius_m": self.radius}
+        if self.vx or self.vy:
+            out.update(vx_m_s=self.vx, vy_m_s=self.vy)
+        return out
 
 
 @dataclass
@@ -115,7 +130,7 @@ class Path:
         k = int(np.argmin(d))
         return float(c0[k] + t[k] * (c1[k] - c0[k])), float(d[k])
 
-    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray) -> float:
+    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray, t: float = 0.0) -> float:
         s, _ = self.project(np.asarray(com_xy, dtype=float), self._s - 1.0, self._s + 3.0)
         self._s = max(self._s, s)
         aim = self.at(self._s + self.lookahead)

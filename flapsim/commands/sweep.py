@@ -1,0 +1,70 @@
+"""``flapsim sweep``: swim one stroke at several values of one parameter (in parallel
+processes) and print a table of the results."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from flapsim.commands.swim import add_target_arguments, target_from_args
+from flapsim.errors import InputError
+from flapsim.io import atomic_path
+from flapsim.swim.sweep import PARAMETERS, sweep, table
+
+HELP = ("batch-evaluate the swimmer: one stroke over several water densities, lung "
+        "volumes, stroke rates, frictions or cross currents; a table of the results")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--stroke", default="crawl",
+                   help="breaststroke, crawl, treading, or a stroke .toml file (default crawl)")
+    p.add_argument("--vary", required=True, choices=sorted(PARAMETERS),
+                   help="the parameter to sweep: " + ", ".join(
+                       f"{k} [{v[1]}]" for k, v in PARAMETERS.items())
+                   + " (current: a cross current along +y)")
+    p.add_argument("--values", required=True, metavar="V1,V2,...",
+                   help="the values to try, comma-separated")
+    p.add_argument("--seconds", type=float, default=20.0, help="simulated time per run [s]")
+    add_target_arguments(p)
+    p.add_argument("--no-feedback", action="store_true", help="basic stroke layer only")
+    p.add_argument("--workers", type=int, default=None,
+                   help="parallel processes (default: one per CPU core, at most one per value)")
+    p.add_argument("--csv", metavar="PATH", help="also write the table as CSV")
+
+
+def run(args: argparse.Namespace) -> dict:
+    try:
+        values = [float(v) for v in args.values.split(",") if v.strip()]
+    except ValueError:
+        raise InputError(f"--values must be comma-separated numbers, got {args.values!r}") from None
+    if not (0 < args.seconds <= 3600):
+        raise InputError(f"--seconds must be in (0, 3600], got {args.seconds}")
+    if args.workers is not None and args.workers < 1:
+        raise InputError("--workers must be >= 1")
+    if args.csv and not str(args.csv).endswith(".csv"):
+        raise InputError(f"--csv must name a .csv file, got {args.csv!r}")
+    target = target_from_args(args)
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    with tqdm(total=len(values), unit="run", desc=f"{args.stroke} x {args.vary}") as bar:
+        rows = sweep(args.stroke, args.vary, values, args.seconds, target,
+                     feedback=not args.no_feedback, workers=args.workers,
+                     on_done=lambda _: bar.update(1))
+    wall = time.perf_counter() - t0
+    text = table(rows, args.vary)
+    print(f"{args.stroke}, {args.seconds:g} s per run, varying {args.vary} "
+          f"({len(rows)} runs in {wall:.1f} s):")
+    print(text)
+    if args.csv:
+        keys = sorted({k for r in rows for k, v in r.items() if not isinstance(v, (dict, list))},
+                      key=lambda k: (k != "value", k))
+        with atomic_path(args.csv) as tmp:
+            lines = [",".join(keys)]
+            for r in rows:
+                lines.append(",".join("" if r.get(k) is None else str(r.get(k)) for k in keys))
+            tmp.write_text("\n".join(lines) + "\n")
+        print(f"table written to {args.csv}")
+    return {"stroke": args.stroke, "vary": args.vary, "unit": PARAMETERS[args.vary][1],
+            "seconds": args.seconds, "target": target.describe() if target else None,
+            "rows": rows, "wall_s": wall}
