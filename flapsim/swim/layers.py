@@ -166,7 +166,7 @@ class FeedbackLayer:
         for i, name in enumerate(self.names):
             p = self.basic.stroke.perturbations[name]
             w = weight(p.gains, p.bias, values)
-            if p.smooth_s > 0.0 and dt > 0.0:
+            if p.smooth_s > 0.0:  # from 0 at the start, like a muscle that has to move
                 w = self.weights[name] + (w - self.weights[name]) * min(1.0, dt / p.smooth_s)
             self.weights[name] = w
             if w > 0:

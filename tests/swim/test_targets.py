@@ -74,8 +74,8 @@ def test_crawl_holds_its_heading():
 
 @pytest.mark.parametrize("stroke, reached_by", [("crawl", 20.0), ("breaststroke", 25.0)])
 def test_swims_to_a_point_on_its_left(stroke, reached_by):
-    # a point 10 m to the left of the start: measured reached (within 0.5 m) at 15.5 s
-    # (crawl) and 19.9 s (breaststroke)
+    # a point 10 m to the left of the start: measured reached (within 0.5 m) at 16.0 s
+    # (crawl) and 19.6 s (breaststroke)
     s = swim(stroke, 30.0, target=Point(0.0, 10.0)).summary()
     assert s["target_reached_s"] is not None and s["target_reached_s"] < reached_by
 
