@@ -27,54 +27,40 @@ def run(args: argparse.Namespace) -> dict:
     def bare(n: int) -> None:
         mujoco.mj_step(m, d, nstep=n)
 
-    def full(n: int) -> None:
-        for i in range(n):
-            if i % 5 == 0:
-                sw.update_flow()
-            layer.apply(d, dt)
-            mujoco.mj_step(m, d)
+    def stepper(basic: BasicStrokeLayer, fb: FeedbackLayer | None):
+        """The simulate loop of flapsim.swim.simulate.swim, without its recording."""
+        def run_steps(n: int) -> None:
+            for i in range(n):
+                if i % 5 == 0:
+                    sw.update_flow()
+                    if fb is not None:
+                        fb.update(d)
+                basic.apply(d, dt)
+                mujoco.mj_step(m, d)
+        return run_steps
 
     tread = BasicStrokeLayer(sw, load_stroke("treading"))
     crawl = BasicStrokeLayer(sw, load_stroke("crawl"))
-    feedback: list[FeedbackLayer] = []
-    steering: list[FeedbackLayer] = []
-
-    def with_steering(n: int) -> None:
-        for i in range(n):
-            if i % 5 == 0:
-                sw.update_flow()
-                steering[0].update(d)
-            crawl.apply(d, dt)
-            mujoco.mj_step(m, d)
-
-    def with_feedback(n: int) -> None:
-        for i in range(n):
-            if i % 5 == 0:
-                sw.update_flow()
-                feedback[0].update(d)
-            tread.apply(d, dt)
-            mujoco.mj_step(m, d)
+    balance = FeedbackLayer(tread)
+    steering = FeedbackLayer(crawl, target=figure_eight(6.0))
+    # label -> (posture, basic layer, step function)
+    cases = {
+        "bare_mj_step": ("prone", layer, bare),
+        "swimmer": ("prone", layer, stepper(layer, None)),
+        "treading_feedback": ("upright", tread, stepper(tread, balance)),
+        "crawl_figure8": ("prone", crawl, stepper(crawl, steering)),
+    }
 
     def start(label: str) -> None:
-        if label == "crawl_figure8":
-            sw.reset("prone", qpos_joints=crawl.start_pose(0.0))
-            crawl.phase = 0.0
-            if not steering:
-                steering.append(FeedbackLayer(crawl, target=figure_eight(6.0)))
-            steering[0].target.reset()
-        elif label == "treading_feedback":
-            sw.reset("upright", qpos_joints=tread.start_pose(0.0))
-            tread.phase = 0.0
-            if not feedback:
-                feedback.append(FeedbackLayer(tread))
-        else:
-            sw.reset("prone", qpos_joints=layer.start_pose(0.0))
-            layer.phase = 0.0
+        posture, basic, _ = cases[label]
+        sw.reset(posture, qpos_joints=basic.start_pose(0.0))
+        basic.phase = 0.0
+        for fb in (balance, steering):
+            fb.reset()
 
     out = {}
-    for label, fn, providers in (("bare_mj_step", bare, False), ("swimmer", full, True),
-                                 ("treading_feedback", with_feedback, True),
-                                 ("crawl_figure8", with_steering, True)):
+    for label, (_, _, fn) in cases.items():
+        providers = label != "bare_mj_step"
         if providers:
             sw.attach()
         start(label)

@@ -138,6 +138,16 @@ class FeedbackLayer:
         self._last_t: float | None = None
         self.history: list[list[float]] = []
 
+    def reset(self, reference: np.ndarray | None = None) -> None:
+        """Start over: weights back to 0, the smoothing restarted, and the reference
+        point (drift signals) at ``reference`` or the swimmer's centre of mass now."""
+        self.weights = {k: 0.0 for k in self.names}
+        self._last_t = None
+        self.reference = (np.asarray(reference, dtype=float)[:2].copy() if reference is not None
+                          else self.basic.swimmer.com()[:2])
+        if self.target is not None and hasattr(self.target, "reset"):
+            self.target.reset()
+
     @staticmethod
     def _ball_cols(sw: Swimmer) -> list[int]:
         cols, c = [], 0
@@ -161,6 +171,8 @@ class FeedbackLayer:
         q = self._q0.copy()
         v = self._v0.copy()
         now = float(data.time)
+        if self._last_t is not None and now < self._last_t:
+            self.reset()  # the simulation was reset under us: start over
         dt = now - self._last_t if self._last_t is not None else 0.0
         self._last_t = now
         for i, name in enumerate(self.names):

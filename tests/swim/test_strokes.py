@@ -208,3 +208,24 @@ def test_perturbation_mirror_scale_gives_opposite_sides(tmp_path):
     left = st.curve("elbow_l.pronation", x, {"sway": 1.0}) - 10.0
     right = st.curve("elbow_r.pronation", x, {"sway": 1.0}) - 10.0
     assert np.allclose(right, -left) and np.abs(left).max() == pytest.approx(15.0)
+
+
+def test_feedback_smoothing_starts_at_zero_and_survives_a_reset(tmp_path):
+    from flapsim.swim.layers import FeedbackLayer
+
+    f = tmp_path / "s.toml"
+    f.write_text('[keys.knee_l]\nflex = [[0.0, 10]]\n'
+                 '[perturb.p]\nsmooth_s = 0.5\nfeedback = { bias = 1.0 }\n'
+                 '[perturb.p.keys.knee_l]\nflex = [[0.0, 5]]\n')
+    sw = Swimmer(SwimmerParams(world="bare"))
+    basic = BasicStrokeLayer(sw, load_stroke(str(f)), nsamp=24)
+    sw.reset("upright", height=0.0)
+    fb = FeedbackLayer(basic)
+    d = sw.data
+    assert fb.update(d)["p"] == 0.0  # the first update moves nothing (dt = 0)
+    d.time = 0.25
+    assert fb.update(d)["p"] == pytest.approx(0.5)  # half way after half the time constant
+    d.time = 0.0  # the simulation was reset: start over, no extrapolation
+    assert fb.update(d)["p"] == 0.0
+    d.time = 0.1
+    assert 0.0 < fb.update(d)["p"] < 1.0
