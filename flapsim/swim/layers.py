@@ -130,8 +130,8 @@ class FeedbackLayer:
                           else sw.com()[:2])
         # heading: along the trunk's long axis when prone, its front when upright
         self.forward_axis = 2 if st.posture == "prone" else 0
-        #: something with ``heading(com_xy, vel_xy) -> rad`` (flapsim.swim.targets), or
-        #: None: hold the start heading
+        #: something with ``heading(com_xy, vel_xy, t) -> rad`` (flapsim.swim.targets),
+        #: or None: hold the start heading
         self.target = target
         self.desired_heading = 0.0
         self.weights = {k: 0.0 for k in self.names}
@@ -160,6 +160,9 @@ class FeedbackLayer:
     def update(self, data: mujoco.MjData) -> dict[str, float]:
         """Measure the signals, set each perturbation's weight, blend the targets."""
         sw = self.basic.swimmer
+        now = float(data.time)
+        if self._last_t is not None and now < self._last_t:
+            self.reset()  # the simulation was reset under us: start over
         if self.target is not None:
             mujoco.mj_subtreeVel(sw.model, data)
             com = data.subtree_com[self.root]
@@ -170,9 +173,6 @@ class FeedbackLayer:
                          self.forward_axis, self.desired_heading)
         q = self._q0.copy()
         v = self._v0.copy()
-        now = float(data.time)
-        if self._last_t is not None and now < self._last_t:
-            self.reset()  # the simulation was reset under us: start over
         dt = now - self._last_t if self._last_t is not None else 0.0
         self._last_t = now
         for i, name in enumerate(self.names):
