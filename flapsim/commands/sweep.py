@@ -30,6 +30,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None,
                    help="parallel processes (default: one per CPU core, at most one per value)")
     p.add_argument("--csv", metavar="PATH", help="also write the table as CSV")
+    p.add_argument("--plot", metavar="PATH",
+                   help="also plot speeds and heights against the parameter (PNG)")
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -43,6 +45,8 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError("--workers must be >= 1")
     if args.csv and not str(args.csv).endswith(".csv"):
         raise InputError(f"--csv must name a .csv file, got {args.csv!r}")
+    if args.plot and not str(args.plot).endswith(".png"):
+        raise InputError(f"--plot must name a .png file, got {args.plot!r}")
     target = target_from_args(args)
     from tqdm import tqdm
 
@@ -65,6 +69,11 @@ def run(args: argparse.Namespace) -> dict:
                 lines.append(",".join("" if r.get(k) is None else str(r.get(k)) for k in keys))
             tmp.write_text("\n".join(lines) + "\n")
         print(f"table written to {args.csv}")
+    if args.plot:
+        from flapsim.swim.plots import sweep_plot
+
+        sweep_plot(rows, args.vary, PARAMETERS[args.vary][1], args.plot, args.stroke)
+        print(f"plot written to {args.plot}")
     return {"stroke": args.stroke, "vary": args.vary, "unit": PARAMETERS[args.vary][1],
             "seconds": args.seconds, "target": target.describe() if target else None,
             "rows": rows, "wall_s": wall}

@@ -83,6 +83,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", metavar="PATH",
                    help="write the track (.npz: time, com, head, muscle_power [SI], and "
                         "target_path, the path followed, if any)")
+    p.add_argument("--plot", metavar="PATH",
+                   help="write a top view of the track (and the path/target) as PNG")
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
 
 
@@ -136,6 +138,8 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--video must name an .mp4 file, got {video!r}")
     if args.out and not str(args.out).endswith(".npz"):
         raise InputError(f"--out must name an .npz file, got {args.out!r}")
+    if args.plot and not str(args.plot).endswith(".png"):
+        raise InputError(f"--plot must name a .png file, got {args.plot!r}")
     target = target_from_args(args)
     flow = _flow(args)
     current = _vec(args.current, "--current", 3)
@@ -167,6 +171,11 @@ def run(args: argparse.Namespace) -> dict:
             viewer.close()
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    if args.plot:
+        from flapsim.swim.plots import track_plot
+
+        track_plot(result, args.plot)
+        s["plot"] = str(args.plot)
     if viewer is not None:
         rates = [e["rate_hz"] for e in viewer.events if "rate_hz" in e]
         s["viewer"] = {"events": viewer.events,
@@ -229,4 +238,6 @@ def run(args: argparse.Namespace) -> dict:
         print(f"  video            {video}")
     if args.out:
         print(f"  track            {args.out}")
+    if args.plot:
+        print(f"  plot             {args.plot}")
     return s

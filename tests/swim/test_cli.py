@@ -41,3 +41,22 @@ def test_swim_command_bad_input_is_one_line(tmp_path, capsys, monkeypatch, argv,
     assert rc == 2
     assert len(err) >= 1 and message in err[-1] and "Traceback" not in "".join(err)
     assert list(tmp_path.iterdir()) == []  # nothing half-written
+
+
+def test_swim_and_sweep_plots(tmp_path):
+    import imageio.v2 as imageio
+
+    track, sweep_png = tmp_path / "track.png", tmp_path / "sweep.png"
+    assert cli.main(["swim", "--stroke", "crawl", "--seconds", "8", "--figure8", "6",
+                     "--plot", str(track)]) == 0
+    img = imageio.imread(track)
+    assert img.shape[:2] == (600, 800)
+    # the track (~6 m swum) is drawn in blue, the path (75 m) in gray: both are there
+    rgb = img[..., :3].astype(int)
+    blue = (rgb[..., 2] > 180) & (rgb[..., 0] < 80) & (rgb[..., 1] < 80)
+    gray = (abs(rgb[..., 0] - 128) < 20) & (abs(rgb[..., 1] - 128) < 20) & (abs(rgb[..., 2] - 128) < 20)
+    assert blue.sum() > 150 and gray.sum() > 1000
+    assert cli.main(["sweep", "--stroke", "crawl", "--vary", "lungs", "--values", "2,4",
+                     "--seconds", "2", "--workers", "1", "--plot", str(sweep_png)]) == 0
+    assert imageio.imread(sweep_png).shape[:2] == (600, 1600)
+    assert cli.main(["swim", "--seconds", "1", "--plot", str(tmp_path / "x.jpg")]) == 2
