@@ -50,11 +50,11 @@ def test_swim_and_sweep_plots(tmp_path):
     assert cli.main(["swim", "--stroke", "crawl", "--seconds", "8", "--figure8", "6",
                      "--plot", str(track)]) == 0
     img = imageio.imread(track)
-    assert img.shape[:2] == (600, 800)
+    assert img.shape[:2] == (600, 800)  # 8 x 6 inches at 100 dpi
     # the track (~6 m swum) is drawn in blue, the path (75 m) in gray: both are there
     rgb = img[..., :3].astype(int)
     blue = (rgb[..., 2] > 180) & (rgb[..., 0] < 80) & (rgb[..., 1] < 80)
-    gray = (abs(rgb[..., 0] - 128) < 20) & (abs(rgb[..., 1] - 128) < 20) & (abs(rgb[..., 2] - 128) < 20)
+    gray = (abs(rgb[..., 0] - 128) < 12) & (abs(rgb[..., 1] - 128) < 12) & (abs(rgb[..., 2] - 128) < 12)
     assert blue.sum() > 150 and gray.sum() > 1000
     assert cli.main(["sweep", "--stroke", "crawl", "--vary", "lungs", "--values", "2,4",
                      "--seconds", "2", "--workers", "1", "--plot", str(sweep_png)]) == 0
