@@ -6,6 +6,12 @@ subsampled to the video rate) and a body to follow. The video is written atomica
 
 ``MUJOCO_GL`` must be chosen before mujoco is first imported; ``import flapsim`` sets
 ``egl`` when there is no display.
+
+Known pitfall (measured here, mujoco 3.17 + VTK via pyvista): closing a pyvista
+offscreen window after a MuJoCo EGL renderer has run terminates the EGL display that
+MuJoCo shares, and every later ``mujoco.Renderer`` in that process fails (EGLError).
+Render MuJoCo videos before pyvista pictures in one process (``flapsim animate`` does),
+or use separate processes; flapsim's plots use matplotlib for this reason.
 """
 
 from __future__ import annotations
