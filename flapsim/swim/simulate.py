@@ -110,13 +110,7 @@ class SwimResult:
         elif isinstance(t, Path):
             # distance to the path and progress along it, in order (as the steering saw
             # it), until the end of the path comes within the look-ahead
-            s_prev, err, prog = 0.0, [], []
-            for p in xy:
-                s, dist = t.project(p, s_prev - 1.0, s_prev + 3.0)
-                s_prev = max(s_prev, s)
-                err.append(dist)
-                prog.append(s_prev)
-            err_a, prog_a = np.asarray(err), np.asarray(prog)
+            prog_a, err_a = t.track(xy)
             done = np.flatnonzero(prog_a >= t.length - t.lookahead)
             sel = self._steady() & (np.arange(len(prog_a)) < (done[0] if len(done) else len(prog_a)))
             if not np.any(sel):

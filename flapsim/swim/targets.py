@@ -130,9 +130,24 @@ class Path:
         k = int(np.argmin(d))
         return float(c0[k] + t[k] * (c1[k] - c0[k])), float(d[k])
 
+    def advance(self, xy: np.ndarray, s_prev: float) -> tuple[float, float]:
+        """(progress, distance): the closest point to ``xy`` searched from 1 m behind to
+        3 m ahead of the progress so far ``s_prev`` [m]; progress never goes back."""
+        s, d = self.project(xy, s_prev - 1.0, s_prev + 3.0)
+        return max(s_prev, s), d
+
+    def track(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Progress along the path [m] and distance from it [m] for each point of a
+        track (n, 2), in order, as the steering sees them."""
+        s, prog, dist = 0.0, [], []
+        for p in np.asarray(xy, dtype=float):
+            s, d = self.advance(p, s)
+            prog.append(s)
+            dist.append(d)
+        return np.asarray(prog), np.asarray(dist)
+
     def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray, t: float = 0.0) -> float:
-        s, _ = self.project(np.asarray(com_xy, dtype=float), self._s - 1.0, self._s + 3.0)
-        self._s = max(self._s, s)
+        self._s, _ = self.advance(np.asarray(com_xy, dtype=float), self._s)
         aim = self.at(self._s + self.lookahead)
         return math.atan2(aim[1] - com_xy[1], aim[0] - com_xy[0])
 
