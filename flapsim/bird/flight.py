@@ -240,10 +240,16 @@ def reduced_state(d: mujoco.MjData) -> np.ndarray:
 
 
 def pitch_roll(R: np.ndarray) -> tuple[float, float]:
-    """Nose-up pitch and right-wing-down roll of a body frame (x forward, y left, z up)."""
+    """Nose-up pitch and right-wing-down roll of a body frame (x forward, y left, z up), rad.
+
+    ``R``'s columns are the body axes in world coordinates. Pitch is the forward axis's
+    elevation above the horizontal (+ nose up). Roll is the left axis's elevation (+ left
+    wing up = right wing down): a right-handed rotation by +r about the body's forward x
+    axis from level gives roll +r (``tests/bird/test_flight.py`` checks the sign).
+    """
     fwd, left = R[:, 0], R[:, 1]
     pitch = float(np.arcsin(np.clip(fwd[2], -1, 1)))
-    roll = float(np.arcsin(np.clip(-left[2], -1, 1)))
+    roll = float(np.arcsin(np.clip(left[2], -1, 1)))
     return pitch, roll
 
 

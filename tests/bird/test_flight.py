@@ -144,3 +144,25 @@ def test_divergence_is_an_error_not_a_silent_reset():
     dove = Dove.from_params(dataclasses.replace(DoveParams.load(), timestep=1 / 600))
     with pytest.raises(SimulationError, match="diverged"):
         fly(dove, 1)
+
+
+@pytest.mark.parametrize("angle_deg", [-35.0, 20.0])
+def test_roll_sign_is_right_wing_down_positive(angle_deg):
+    from flapsim.bird.flight import pitch_roll, reduced_state
+
+    r = np.radians(angle_deg)
+    # right-handed rotation by r about the body's forward x axis, from level flight
+    q = np.array([np.cos(r / 2), np.sin(r / 2), 0.0, 0.0])
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    R = R.reshape(3, 3)
+    pitch, roll = pitch_roll(R)
+    assert roll == pytest.approx(r, abs=1e-12) and pitch == pytest.approx(0.0, abs=1e-12)
+    # positive roll = right wing (body -y) below the horizon: the documented convention
+    right_wing_z = (R @ np.array([0.0, -1.0, 0.0]))[2]
+    assert np.sign(right_wing_z) == -np.sign(roll)
+    # the reduced state reads the same roll from a free trunk's quaternion
+    dove = Dove.load()
+    d = mujoco.MjData(dove.model)
+    d.qpos[3:7] = q
+    assert reduced_state(d)[1] == pytest.approx(r, abs=1e-12)
