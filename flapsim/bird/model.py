@@ -15,6 +15,11 @@ symmetric wingbeat has equal left/right angles and mirroring swaps them.
 * ``tail_bend``        + tilts the tail up; ``tail_spread`` + opens the fan (each half-fan
   turns outward by this angle).
 
+Every actuated DOF has an anatomical range (MJCF joint ``range``; the tail spread's on its
+tendon) and a torque limit (actuator ``forcerange``), both from ``data/dove.toml`` with
+their sources: :func:`dof_ranges` and :func:`torque_limits` return them in
+:data:`DOF_NAMES` order, for controllers to refuse wingbeats that leave them.
+
 Feathers: 10 primaries per hand, each a body on two hinges: a *fan* hinge tied to the
 wrist angle by a stiff tendon spring (the postpatagial ligament that spreads the
 primaries as the wrist extends) and a *twist* hinge about the shaft with the paper's
@@ -162,6 +167,15 @@ class DoveParams:
     """PD damping of the servos, N m s/rad (paper: 0.002)."""
     timestep: float
     """Integration step, s (paper: 1/2400)."""
+    dof_range_deg: tuple[tuple[float, float], ...] = ()
+    """(lo, hi) joint range of each of the 14 DOF in :data:`DOF_NAMES` order, deg, in the
+    model's sign conventions (left and right equal: mirror-symmetric joints). Anatomical
+    ranges of pigeons/doves; sources in ``data/dove.toml`` [limits]."""
+    limit_solref: tuple[float, float] = (0.004, 1.0)
+    """MuJoCo solref (time constant s, damping ratio) of the joint-range constraints."""
+    dof_torque_limit: tuple[tuple[float, float], ...] = ()
+    """(lo, hi) actuator torque limit of each of the 14 DOF, N m (tail spread: N m per rad
+    of its tendon); sources in ``data/dove.toml`` [torque]."""
     source: str = field(default="", compare=False)
     """Path of the parameter file these values came from."""
 
@@ -208,6 +222,9 @@ class DoveParams:
                 tail_sym_damping=t["spread_sym_damping"], rectrix_segments=t["segments"],
                 joint_damping=j["damping"], joint_armature=j["armature"],
                 pd_kp=pd["kp"], pd_kv=pd["kv"], timestep=pd["timestep"],
+                dof_range_deg=_per_dof(raw["limits"], "_deg"),
+                limit_solref=tuple(raw["limits"]["solref"]),
+                dof_torque_limit=_per_dof(raw["torque"], ""),
                 source=str(path),
             )
         except KeyError as exc:
@@ -228,12 +245,45 @@ class DoveParams:
             raise DataFileError("body: total_mass must exceed the wing and tail masses")
         if self.hand_mass <= n * self.primary_mass:
             raise DataFileError("hand mass must exceed the primaries' mass")
+        for label, pairs in (("limits", self.dof_range_deg), ("torque", self.dof_torque_limit)):
+            if len(pairs) != N_DOF:
+                raise DataFileError(f"{label}: need (lo, hi) for each of the {N_DOF} DOF")
+            for name, (lo, hi) in zip(DOF_NAMES, pairs, strict=True):
+                if not lo < hi:
+                    raise DataFileError(f"{label}: {name} needs lo < hi, got [{lo}, {hi}]")
+                if label == "torque" and not lo < 0 < hi:
+                    raise DataFileError(f"torque: {name} must allow both directions (lo < 0 < hi)")
 
     @property
     def trunk_mass(self) -> float:
         """Trunk + head mass: the total minus wings and tail, kg."""
         return self.total_mass - 2 * (self.upper_arm_mass + self.forearm_mass + self.hand_mass) \
             - self.tail_mass
+
+
+def _per_dof(section: dict, suffix: str) -> tuple[tuple[float, float], ...]:
+    """(lo, hi) per DOF in :data:`DOF_NAMES` order from a TOML section keyed by the
+    side-free DOF name (``shoulder_flap``, ..., ``tail_spread``) + ``suffix``."""
+    out = []
+    for name in DOF_NAMES:
+        key = (name[2:] if name[:2] in ("l_", "r_") else name) + suffix
+        lo, hi = section[key]
+        out.append((float(lo), float(hi)))
+    return tuple(out)
+
+
+def dof_ranges(params: DoveParams) -> tuple[np.ndarray, np.ndarray]:
+    """Joint ranges of the 14 actuated DOF: (lo (14,), hi (14,)) in rad, in
+    :data:`DOF_NAMES` order (the tail spread's is its tendon's). A commanded wingbeat
+    whose targets leave them asks for an anatomically impossible pose."""
+    r = np.radians(np.array(params.dof_range_deg, dtype=float).reshape(N_DOF, 2))
+    return r[:, 0].copy(), r[:, 1].copy()
+
+
+def torque_limits(params: DoveParams) -> tuple[np.ndarray, np.ndarray]:
+    """Actuator torque limits of the 14 DOF: (lo (14,), hi (14,)), N m, DOF_NAMES order."""
+    t = np.array(params.dof_torque_limit, dtype=float).reshape(N_DOF, 2)
+    return t[:, 0].copy(), t[:, 1].copy()
 
 
 # -- geometry --------------------------------------------------------------------------------
@@ -464,7 +514,7 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None) -> str:
     out.append(trunk)
     out.append("  </worldbody>\n")
     out.append(_tendons_xml(p))
-    out.append(_actuators_xml())
+    out.append(_actuators_xml(p))
     out.append(_sensors_xml())
     out.append("</mujoco>\n")
     return "".join(out)
@@ -555,20 +605,26 @@ def _wing_xml(p: DoveParams, s: str, by_body) -> str:
     L = [
         f'{i1}<body name="{s}_humerus" pos="{_pt(s, p.shoulder_pos)}" quat="{_v(quat)}">',
         f"{i2}{_inertial_xml(hum)}",
-        f'{i2}<joint name="{s}_shoulder_flap" axis="{_ax(s, (1, 0, 0))}"/>',
-        f'{i2}<joint name="{s}_shoulder_sweep" axis="{_ax(s, (0, 0, 1))}"/>',
-        f'{i2}<joint name="{s}_shoulder_twist" axis="{_ax(s, (0, 1, 0))}"/>',
+        f'{i2}<joint name="{s}_shoulder_flap" axis="{_ax(s, (1, 0, 0))}"'
+        f'{_lim(p, "shoulder_flap")}/>',
+        f'{i2}<joint name="{s}_shoulder_sweep" axis="{_ax(s, (0, 0, 1))}"'
+        f'{_lim(p, "shoulder_sweep")}/>',
+        f'{i2}<joint name="{s}_shoulder_twist" axis="{_ax(s, (0, 1, 0))}"'
+        f'{_lim(p, "shoulder_twist")}/>',
         f'{i2}<geom name="{s}_humerus" class="bone" fromto="0 0 0 {_pt(s, (0, Lh, 0))}"/>',
         *_feather_geoms(tert, "feather", i2),
         f'{i2}<body name="{s}_forearm" pos="{_pt(s, (0, Lh, 0))}">',
         f"{i3}{_inertial_xml(fore)}",
-        f'{i3}<joint name="{s}_elbow_flex" axis="{_ax(s, (0, 0, -1))}"/>',
-        f'{i3}<joint name="{s}_elbow_twist" axis="{_ax(s, (0, 1, 0))}"/>',
+        f'{i3}<joint name="{s}_elbow_flex" axis="{_ax(s, (0, 0, -1))}"'
+        f'{_lim(p, "elbow_flex")}/>',
+        f'{i3}<joint name="{s}_elbow_twist" axis="{_ax(s, (0, 1, 0))}"'
+        f'{_lim(p, "elbow_twist")}/>',
         f'{i3}<geom name="{s}_forearm" class="bone" fromto="0 0 0 {_pt(s, (0, Lf, 0))}"/>',
         *_feather_geoms(sec, "feather", i3),
         f'{i3}<body name="{s}_hand" pos="{_pt(s, (0, Lf, 0))}">',
         f"{i3}  {_inertial_xml(hand)}",
-        f'{i3}  <joint name="{s}_wrist_flex" axis="{_ax(s, (0, 0, 1))}"/>',
+        f'{i3}  <joint name="{s}_wrist_flex" axis="{_ax(s, (0, 0, 1))}"'
+        f'{_lim(p, "wrist_flex")}/>',
         f'{i3}  <geom name="{s}_hand" class="bone" size="0.0035" '
         f'fromto="0 0 0 {_pt(s, (0, Lw, 0))}"/>',
     ]
@@ -601,7 +657,7 @@ def _tail_xml(p: DoveParams, by_body) -> str:
     L = [
         f'      <body name="tail" pos="{_v(p.tail_root_pos)}">',
         f"        {_inertial_xml(base)}",
-        '        <joint name="tail_bend" axis="0 1 0"/>',
+        f'        <joint name="tail_bend" axis="0 1 0"{_lim(p, "tail_bend")}/>',
         '        <geom name="tail_base" class="bone" size="0.007" fromto="0.01 0 0 -0.02 0 0"/>',
     ]
     for s in ("l", "r"):
@@ -621,7 +677,7 @@ def _tail_xml(p: DoveParams, by_body) -> str:
 
 def _tendons_xml(p: DoveParams) -> str:
     L = ["  <tendon>",
-         '    <fixed name="tail_spread" limited="false">',
+         f'    <fixed name="tail_spread"{_lim(p, "tail_spread", joint=False)}>',
          '      <joint joint="tail_spread_l" coef="0.5"/><joint joint="tail_spread_r" coef="0.5"/>',
          "    </fixed>",
          f'    <fixed name="tail_sym" stiffness="{p.tail_sym_stiffness:.6g}" '
@@ -639,11 +695,19 @@ def _tendons_xml(p: DoveParams) -> str:
     return "\n".join(L) + "\n"
 
 
-def _actuators_xml() -> str:
+def _lim(p: DoveParams, dof: str, joint: bool = True) -> str:
+    """Range attributes of an actuated DOF (side-free name; left and right are equal)."""
+    lo, hi = p.dof_range_deg[DOF_NAMES.index(dof if dof.startswith("tail") else f"l_{dof}")]
+    out = f' limited="true" range="{np.radians(lo):.6g} {np.radians(hi):.6g}"'
+    return out + (f' solreflimit="{_v(p.limit_solref)}"' if joint else "")
+
+
+def _actuators_xml(p: DoveParams) -> str:
     L = ["  <actuator>"]
-    for name in DOF_NAMES:
+    for name, (lo, hi) in zip(DOF_NAMES, p.dof_torque_limit, strict=True):
         target = 'tendon="tail_spread"' if name == "tail_spread" else f'joint="{name}"'
-        L.append(f'    <general name="{name}" {target}/>')
+        L.append(f'    <general name="{name}" {target} forcelimited="true" '
+                 f'forcerange="{lo:.6g} {hi:.6g}"/>')
     L.append("  </actuator>")
     return "\n".join(L) + "\n"
 

@@ -70,3 +70,50 @@ def test_bad_parameter_file_is_one_line(tmp_path):
     bad.write_text("[body]\ntotal_mass = 0.17\n")
     with pytest.raises(DataFileError, match="lacks key"):
         DoveParams.load(bad)
+
+
+def test_ranges_contain_the_reference_and_every_capture_cycle_with_margin(dove):
+    from flapsim.bird.capture import reference_capture
+    from flapsim.bird.model import dof_ranges
+    from flapsim.bird.wingbeat import p0, reference_wingbeat, with_tail_bias
+
+    lo, hi = dof_ranges(dove.params)
+    assert lo.shape == hi.shape == (14,) and (lo < hi).all()
+    ref = reference_wingbeat()
+    p = with_tail_bias(p0(), 17.0)  # the flown base wingbeat (paper's +17 deg tail bias)
+    q, _ = ref.evaluate(p, np.linspace(0.0, ref.duration(p), 400, endpoint=False))
+    cap = reference_capture(with_mirror=True).angles  # every frame of every cycle, both hands
+    tail = DOF_NAMES.index("tail_bend")
+    biased = cap.copy()
+    biased[:, tail] += np.radians(17.0)  # capture cycles as flown with the tail bias
+    # a controller samples around these poses: every one must sit 10 deg inside the ranges
+    # (the parameter file's ranges were placed with >= 13 deg to spare; 10 deg is the contract)
+    margin = np.radians(10.0)
+    for poses in (q, cap, biased):
+        assert (poses.min(axis=0) >= lo + margin).all()
+        assert (poses.max(axis=0) <= hi - margin).all()
+
+
+def test_mjcf_carries_the_ranges_and_torque_limits(dove):
+    from flapsim.bird.model import dof_ranges, torque_limits
+
+    m = dove.model
+    lo, hi = dof_ranges(dove.params)
+    tlo, thi = torque_limits(dove.params)
+    for i, name in enumerate(DOF_NAMES):
+        if name == "tail_spread":  # a tendon: its range limits the whole fan
+            t = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, name)
+            assert m.tendon_limited[t]
+            got = m.tendon_range[t]
+        else:
+            j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+            assert m.jnt_limited[j]
+            got = m.jnt_range[j]
+        # written with 6 significant digits
+        assert got == pytest.approx([lo[i], hi[i]], rel=1e-5)
+        assert m.actuator_forcelimited[i]
+        assert m.actuator_forcerange[i] == pytest.approx([tlo[i], thi[i]], rel=1e-6)
+    # the pectoralis figure: Pennycuick 1968, 1.00 N m for a 400 g pigeon x (0.170 / 0.400)
+    assert -tlo[DOF_NAMES.index("l_shoulder_flap")] == pytest.approx(1.00 * 0.170 / 0.400, abs=0.01)
+    # mirror-symmetric joints: one range and one limit per left/right pair
+    assert np.array_equal(lo[:6], lo[6:12]) and np.array_equal(tlo[:6], tlo[6:12])
