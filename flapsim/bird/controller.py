@@ -1,0 +1,429 @@
+"""The learned wingbeat controller (the flight paper, sec. 4.2).
+
+Each wingbeat, from the current full state the bird first flies the reference wingbeat
+P0 in a throw-away simulation (-> S0, the "instantaneous reference"); the target state
+S_target for the end of the wingbeat gives dS = S_target - S0; a regression over the
+database's (dS_i, dP_i) pairs gives dP, and the bird flies P0 + dP for real.
+
+Regression (:class:`Regressor`):
+
+* ``knn`` (the paper's eq. 3-4): the k nearest dS_i under the weighted squared distance
+  d = (dS - dS_i) W (dS - dS_i)^T, W = diag(w1, w1, w2, w2, w2, w3, w3, w3) with
+  (w1, w2, w3) = (0.2, 0.24, 0.4), found with a kd-tree on sqrt(W)-scaled states, averaged
+  with weights 1/d; k = 0.5 % of the database by default (paper: 50 of 10,000).
+* ``lwlr``: locally weighted linear regression over the same neighbourhood (a weighted
+  affine fit dP ~ a + B (dS_i - dS), ridge-regularised, evaluated at dS, i.e. ``a``):
+  unlike the average, it extrapolates the local trend, so it can ask for more than the
+  neighbours did.
+
+Targets (:class:`CruiseTarget`, :class:`SteerTarget`) turn a task (hold altitude, speed and
+heading; or steer by alpha and climb by beta in one wingbeat) into S_target: a
+coordinated turn banks by atan(v omega / g) (the paper's eq. 5 with the centrifugal force
+m v omega), the body keeps its trim angle of attack to the flight path, and the angular
+velocity is the trim's plus the turn rate.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from flapsim.bird import cycle
+from flapsim.bird.flight import DoveFlight, FlightConfig
+from flapsim.bird.sampling import pose_quat, project_to_ranges
+from flapsim.bird.wingbeat import N_PARAMS, ReferenceWingbeat, p0, with_tail_bias
+from flapsim.errors import InputError
+
+log = logging.getLogger(__name__)
+
+#: The paper's distance weights (orientation, linear velocity, angular velocity).
+PAPER_WEIGHTS = (0.2, 0.24, 0.4)
+GRAVITY = 9.81
+
+
+def weight_vector(w: tuple[float, float, float] = PAPER_WEIGHTS) -> np.ndarray:
+    """diag(W) of eq. 3: (w1, w1, w2, w2, w2, w3, w3, w3)."""
+    w1, w2, w3 = w
+    return np.array([w1, w1, w2, w2, w2, w3, w3, w3], dtype=float)
+
+
+def default_k(n: int, fraction: float = 0.005) -> int:
+    """The paper's best k: 0.5 % of the samples (at least 1)."""
+    return max(1, int(round(fraction * n)))
+
+
+class Regressor:
+    """k-NN (eq. 3-4) or locally weighted linear regression from dS to dP."""
+
+    def __init__(self, dS: np.ndarray, dP: np.ndarray, k: int | None = None,
+                 weights: tuple[float, float, float] = PAPER_WEIGHTS, method: str = "knn",
+                 ridge: float = 1e-3) -> None:
+        dS, dP = np.asarray(dS, float), np.asarray(dP, float)
+        if dS.ndim != 2 or dS.shape[1] != 8 or dP.ndim != 2 or len(dP) != len(dS):
+            raise InputError(f"regression needs dS (n, 8) and dP (n, m), got {dS.shape} and {dP.shape}")
+        if len(dS) == 0:
+            raise InputError("the database holds no samples")
+        if not (np.all(np.isfinite(dS)) and np.all(np.isfinite(dP))):
+            raise InputError("the database holds non-finite samples")
+        if method not in ("knn", "lwlr"):
+            raise InputError(f"regression method must be knn or lwlr, got {method!r}")
+        self.dS, self.dP = dS, dP
+        self.w = weight_vector(weights)
+        self.sqrt_w = np.sqrt(self.w)
+        self.k = min(len(dS), k if k is not None else default_k(len(dS)))
+        if self.k < 1:
+            raise InputError(f"k must be >= 1, got {k}")
+        self.method = method
+        self.ridge = ridge
+        self.tree = cKDTree(dS * self.sqrt_w)
+
+    @property
+    def n(self) -> int:
+        return len(self.dS)
+
+    def neighbours(self, x: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(weighted squared distances (k,), indices (k,)) of the k nearest samples."""
+        k = k or self.k
+        dist, idx = self.tree.query(np.asarray(x, float) * self.sqrt_w, k=k)
+        return np.atleast_1d(dist) ** 2, np.atleast_1d(idx)
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """dP for a differential state ``x`` (8,)."""
+        x = np.asarray(x, float)
+        if x.shape != (8,) or not np.all(np.isfinite(x)):
+            raise InputError(f"a differential state has 8 finite numbers, got {x}")
+        if self.method == "lwlr":
+            return self._lwlr(x)
+        d2, idx = self.neighbours(x)
+        return idw_average(d2, self.dP[idx])
+
+    def _lwlr(self, x: np.ndarray) -> np.ndarray:
+        k = max(self.k, 4 * 9)  # an affine fit in 8 inputs needs a neighbourhood of > 9
+        d2, idx = self.neighbours(x, min(k, self.n))
+        h2 = max(float(d2.max()), 1e-12)
+        wts = np.exp(-d2 / h2)  # Gaussian kernel with the neighbourhood's radius
+        X = (self.dS[idx] - x) * self.sqrt_w
+        A = np.hstack([np.ones((len(idx), 1)), X])
+        Aw = A * wts[:, None]
+        G = A.T @ Aw
+        G[1:, 1:] += self.ridge * np.trace(G[1:, 1:]) / 8 * np.eye(8) + 1e-12 * np.eye(8)
+        coef = np.linalg.solve(G, Aw.T @ self.dP[idx])
+        return coef[0]
+
+
+def idw_average(d2: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Eq. 4: the average of ``values`` weighted by 1 / d; an exact match (d = 0) wins."""
+    exact = d2 <= 1e-300
+    if np.any(exact):
+        return values[exact].mean(axis=0)
+    w = 1.0 / d2
+    return (w @ values) / w.sum()
+
+
+# -- targets --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Trim:
+    """The reduced state of steady level flight at the start of a wingbeat (pitch, angular
+    velocity and velocity direction in the body frame oscillate within a wingbeat, so the
+    target takes them at the same phase)."""
+
+    S: np.ndarray
+    """(8,) mean reduced state at wingbeat starts."""
+
+    @property
+    def pitch(self) -> float:
+        return float(self.S[0])
+
+    @property
+    def aoa(self) -> float:
+        """Body pitch above the flight path (velocity) at the wingbeat start, rad."""
+        v = self.S[2:5]
+        return float(-np.arctan2(v[2], v[0]))
+
+
+def trim_of_base_flight(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig | None = None,
+                        wingbeats: int = 6, skip: int = 2) -> Trim:
+    """Mean start-of-wingbeat state of the base controller over ``wingbeats`` after ``skip``."""
+    fl.reset(cfg or FlightConfig(), P0)
+    states = []
+    for i in range(skip + wingbeats):
+        cycle.fly_cycle(fl, None, P0)
+        if i >= skip:
+            states.append(fl.reduced_state())
+    S = np.mean(states, axis=0)
+    S[1] = 0.0
+    S[3] = 0.0
+    S[5] = 0.0
+    S[7] = 0.0
+    return Trim(S)
+
+
+def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_rate: float,
+                 S_now: np.ndarray | None = None, settle_s: float = 0.2) -> np.ndarray:
+    """S at the end of a wingbeat flying at ``speed`` along (``heading``, ``climb``) and
+    turning at ``turn_rate`` (rad/s, + left) in a coordinated turn: banked by
+    atan(v omega / g) toward the inside, nose ``trim.aoa`` above the flight path.
+
+    The angular velocity asked is the trim's, plus the turn rate, plus the rates that would
+    take the pitch and roll of ``S_now`` (where the reference wingbeat would leave the bird)
+    to the target's in ``settle_s`` seconds: without them the target asks for an
+    orientation while holding the rates that keep it from getting there."""
+    import mujoco
+
+    bank = float(np.arctan2(speed * turn_rate, GRAVITY))
+    pitch = climb + trim.aoa
+    q = pose_quat(pitch, bank_to_roll(bank), heading)
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    R = R.reshape(3, 3)
+    v = speed * np.array([np.cos(climb) * np.cos(heading), np.cos(climb) * np.sin(heading),
+                          np.sin(climb)])
+    w_body = trim.S[5:8] + R.T @ np.array([0.0, 0.0, turn_rate])
+    from flapsim.bird.flight import pitch_roll
+
+    p, r = pitch_roll(R)
+    if S_now is not None:
+        # d(pitch)/dt = -w_y and d(roll)/dt = -w_x * ROLL_SIGN (body axes x fwd, y left, z up)
+        w_body[1] -= (p - S_now[0]) / settle_s
+        w_body[0] -= ROLL_RATE_SIGN * (r - S_now[1]) / settle_s
+    return np.array([p, r, *(R.T @ v), *w_body])
+
+
+def _roll_rate_sign() -> float:
+    """+1 if a positive body-x angular velocity decreases :func:`pitch_roll`'s roll, else -1."""
+    import mujoco
+
+    from flapsim.bird.flight import pitch_roll
+
+    q = np.array([np.cos(0.05), np.sin(0.05), 0.0, 0.0])  # small rotation about +x
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    return 1.0 if pitch_roll(R.reshape(3, 3))[1] < 0 else -1.0
+
+
+ROLL_RATE_SIGN = _roll_rate_sign()
+
+
+def bank_to_roll(bank_left: float) -> float:
+    """The roll angle (in :func:`~flapsim.bird.flight.pitch_roll`'s convention) of a bank
+    with the left wing down by ``bank_left`` rad (a left turn)."""
+    import mujoco
+
+    from flapsim.bird.flight import pitch_roll
+
+    # left wing down = rotation about +x (forward) by -bank in a right-handed frame with
+    # y to the left: find which sign pitch_roll reports for it
+    th = -bank_left
+    q = np.array([np.cos(th / 2), np.sin(th / 2), 0.0, 0.0])
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    return pitch_roll(R.reshape(3, 3))[1]
+
+
+@dataclass
+class CruiseTarget:
+    """Hold an altitude, a speed and a heading (outer loop of the wingbeat controller)."""
+
+    trim: Trim
+    altitude: float
+    """m."""
+    speed: float = FlightConfig.speed
+    """m/s."""
+    heading: float = 0.0
+    """rad (+ left of +x)."""
+    k_altitude: float = 0.6
+    """Climb rate asked per metre of altitude error, 1/s."""
+    max_climb_deg: float = 8.0
+    """Largest climb/descent angle asked, deg."""
+    k_heading: float = 1.5
+    """Turn rate asked per radian of heading error, 1/s."""
+    max_bank_deg: float = 30.0
+    """Largest bank asked, deg."""
+    settle_s: float = 0.2
+    """Time over which pitch and roll errors are asked to close, s (see :func:`target_state`)."""
+
+    def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
+        h, _ = cycle.heading_and_climb(e0.com_vel)
+        err = float(cycle.wrap(self.heading - h))
+        max_rate = GRAVITY * np.tan(np.radians(self.max_bank_deg)) / self.speed
+        rate = float(np.clip(self.k_heading * err, -max_rate, max_rate))
+        vz = -self.k_altitude * (float(e0.trunk_pos[2]) - self.altitude)
+        climb = float(np.clip(np.arcsin(np.clip(vz / self.speed, -1, 1)),
+                              -np.radians(self.max_climb_deg), np.radians(self.max_climb_deg)))
+        return target_state(self.trim, self.speed, h + rate * e0.duration, climb, rate, e0.S,
+                            self.settle_s)
+
+
+@dataclass
+class SteerTarget:
+    """Steer by ``alpha`` and climb by ``beta`` (rad) over one wingbeat, relative to where the
+    reference wingbeat would have taken the bird, at its speed."""
+
+    trim: Trim
+    alpha: float
+    beta: float
+    settle_s: float = 0.2
+
+    def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
+        h, c = cycle.heading_and_climb(e0.com_vel)
+        speed = float(np.linalg.norm(e0.com_vel))
+        rate = self.alpha / e0.duration
+        return target_state(self.trim, speed, h + self.alpha, c + self.beta, rate, e0.S,
+                            self.settle_s)
+
+
+# -- the controller -------------------------------------------------------------------------
+
+
+@dataclass
+class ControlStep:
+    """What the controller did in one wingbeat."""
+
+    P: np.ndarray
+    """The wingbeat flown."""
+    dS_target: np.ndarray
+    """S_target - S0."""
+    S_target: np.ndarray
+    reference: cycle.CycleEnd
+    """Where P0 would have ended."""
+    end: cycle.CycleEnd
+    """Where P ended."""
+    projected: bool
+    """True when P0 + dP left a joint range and was pulled back in."""
+
+
+@dataclass
+class WingbeatController:
+    """P = P0 + regression(S_target - S0), one wingbeat at a time."""
+
+    flight: DoveFlight
+    regressor: Regressor
+    P0: np.ndarray = field(default_factory=lambda: with_tail_bias(p0(), FlightConfig.tail_bias_deg))
+    lo: np.ndarray | None = None
+    hi: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.regressor.dP.shape[1] != N_PARAMS:
+            raise InputError(f"database dP has {self.regressor.dP.shape[1]} columns, expected {N_PARAMS}")
+        if self.lo is None or self.hi is None:
+            self.lo, self.hi = cycle.model_dof_ranges(self.flight)
+
+    @property
+    def ref(self) -> ReferenceWingbeat:
+        return self.flight.ref
+
+    def choose(self, target, snap: cycle.Snapshot | None = None, record: bool = False
+               ) -> ControlStep:
+        """Decide and fly one wingbeat toward ``target`` (a callable: P0's end -> S_target)."""
+        fl = self.flight
+        snap = snap or cycle.snapshot(fl)
+        e0 = cycle.fly_cycle(fl, snap, self.P0, self.ref)
+        S_t = np.asarray(target(e0), float)
+        dS = S_t - e0.S
+        P = self.P0 + self.regressor.predict(dS)
+        Pp = project_to_ranges(self.ref, P, self.lo, self.hi)
+        projected = bool(np.max(np.abs(Pp - P)) > 1e-12)
+        end = cycle.fly_cycle(fl, snap, Pp, self.ref, record=record)
+        return ControlStep(Pp, dS, S_t, e0, end, projected)
+
+
+# -- a controlled flight ----------------------------------------------------------------------
+
+
+@dataclass
+class ControlledFlight:
+    """Per-wingbeat record of a flight under the learned controller."""
+
+    steps: list[ControlStep]
+    start_pos: np.ndarray
+    """Trunk position at the start, m."""
+    wall_time: float
+    """Wall-clock seconds (the P0 predictions included)."""
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(n + 1, 3) trunk position at the start and at each wingbeat's end."""
+        return np.vstack([self.start_pos, [s.end.trunk_pos for s in self.steps]])
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """(n, 3) centre-of-mass velocity at each wingbeat's end."""
+        return np.array([s.end.com_vel for s in self.steps])
+
+    @property
+    def params(self) -> np.ndarray:
+        """(n, 29) wingbeats flown."""
+        return np.array([s.P for s in self.steps])
+
+    @property
+    def states(self) -> np.ndarray:
+        """(n, 8) reduced state at each wingbeat's end."""
+        return np.array([s.end.S for s in self.steps])
+
+    @property
+    def simulated_s(self) -> float:
+        return float(sum(s.end.duration for s in self.steps))
+
+
+def fly_controlled(controller: WingbeatController, target, wingbeats: int,
+                   progress: bool = False) -> ControlledFlight:
+    """Fly ``wingbeats`` wingbeats under ``controller`` toward ``target`` from the flight's
+    current state."""
+    import time
+
+    fl = controller.flight
+    start = fl.data.qpos[0:3].copy()
+    it = range(wingbeats)
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(it, desc="wingbeats", unit="wb")
+    steps = []
+    t0 = time.perf_counter()
+    for _ in it:
+        steps.append(controller.choose(target))
+    return ControlledFlight(steps, start, time.perf_counter() - t0)
+
+
+def start_cruise(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig | None = None,
+                 roll_deg: float = 0.0) -> None:
+    """The standard cruise start (:meth:`DoveFlight.reset`), rolled by ``roll_deg`` (in
+    :func:`~flapsim.bird.flight.pitch_roll`'s convention) about the trunk's forward axis."""
+    import mujoco
+
+    cfg = cfg or FlightConfig()
+    fl.reset(cfg, P0)
+    if roll_deg:
+        d = fl.data
+        q = pose_quat(np.radians(cfg.pitch_deg), np.radians(roll_deg))
+        d.qpos[3:7] = q
+        mujoco.mj_forward(fl.model, d)
+
+
+def cruise_metrics(f: ControlledFlight, target: CruiseTarget) -> dict:
+    """Largest deviations from the cruise target over the flight (at wingbeat ends)."""
+    pos = f.positions[1:]
+    vel = f.velocities
+    speed = np.linalg.norm(vel, axis=1)
+    heading = np.arctan2(vel[:, 1], vel[:, 0])
+    S = f.states
+    return {
+        "wingbeats": len(f.steps),
+        "simulated_s": f.simulated_s,
+        "max_altitude_deviation": float(np.max(np.abs(pos[:, 2] - target.altitude))),
+        "final_altitude_deviation": float(pos[-1, 2] - target.altitude),
+        "max_speed_deviation": float(np.max(np.abs(speed - target.speed))),
+        "mean_speed": float(speed.mean()),
+        "max_heading_deviation_deg": float(np.degrees(np.max(np.abs(cycle.wrap(heading - target.heading))))),
+        "max_abs_roll_deg": float(np.degrees(np.max(np.abs(S[:, 1])))),
+        "pitch_range_deg": [float(np.degrees(S[:, 0].min())), float(np.degrees(S[:, 0].max()))],
+        "distance": float(np.linalg.norm(pos[-1, :2] - f.start_pos[:2])),
+        "projected_wingbeats": int(sum(s.projected for s in f.steps)),
+        "max_range_excess_deg": float(np.degrees(max(s.end.range_excess for s in f.steps))),
+        "real_time_factor": f.simulated_s / f.wall_time if f.wall_time > 0 else float("nan"),
+    }

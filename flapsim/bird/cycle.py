@@ -1,0 +1,162 @@
+"""One wingbeat from any full simulation state: the unit of sampling and of control.
+
+A :class:`Snapshot` is everything MuJoCo needs to repeat a step bit for bit: the
+``mjSTATE_FULLPHYSICS`` vector (time, joint positions and velocities of the trunk, the
+14 DOF and every feather hinge, ...) and the constraint solver's warm start (joint limits
+make the solver's answer depend on where it starts). :func:`fly_cycle` restores a
+snapshot, flies one wingbeat of parameters ``P`` inside ``mujoco.rollout`` and returns
+the end snapshot, the 8-number reduced state ``S`` (position and heading invariant) and
+the world quantities that steering is measured in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from flapsim.bird.flight import DoveFlight, reduced_state
+from flapsim.bird.model import DOF_NAMES
+from flapsim.bird.wingbeat import ReferenceWingbeat, control_table, split
+from flapsim.errors import SimulationError
+from flapsim.sim.callbacks import DISPATCHER
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """A full simulation state of one dove model."""
+
+    physics: np.ndarray
+    """``mj_getState(..., mjSTATE_FULLPHYSICS)``."""
+    warmstart: np.ndarray
+    """(nv,) ``qacc_warmstart``: the constraint solver's starting point."""
+
+
+@dataclass(frozen=True)
+class CycleEnd:
+    """Where one wingbeat ended."""
+
+    snapshot: Snapshot
+    S: np.ndarray
+    """(8,) reduced state (pitch, roll, body-frame velocity, body-frame angular velocity)."""
+    trunk_pos: np.ndarray
+    """(3,) trunk position, m (world)."""
+    trunk_quat: np.ndarray
+    """(4,) trunk orientation (w, x, y, z)."""
+    com_vel: np.ndarray
+    """(3,) whole-bird centre-of-mass velocity, m/s (world)."""
+    duration: float
+    """Simulated wingbeat duration, s."""
+    range_excess: float
+    """Largest excursion of any of the 14 DOF beyond its joint range over the cycle, rad
+    (0 inside; MuJoCo's soft limits allow a little)."""
+    qpos: np.ndarray | None = None
+    """(n, nq) positions at every step, when recorded."""
+
+
+def snapshot(fl: DoveFlight) -> Snapshot:
+    """The flight's current full state."""
+    m, d = fl.model, fl.data
+    s = np.empty(mujoco.mj_stateSize(m, STATE_SPEC))
+    mujoco.mj_getState(m, d, s, STATE_SPEC)
+    return Snapshot(s, d.qacc_warmstart.copy())
+
+
+def restore(fl: DoveFlight, snap: Snapshot) -> None:
+    """Put the flight back into ``snap`` (bit-identical continuation)."""
+    m, d = fl.model, fl.data
+    mujoco.mj_setState(m, d, snap.physics, STATE_SPEC)
+    d.qacc_warmstart[:] = snap.warmstart
+    d.ctrl[:] = 0.0
+    mujoco.mj_forward(m, d)
+
+
+def heading_and_climb(v: np.ndarray) -> tuple[float, float]:
+    """Heading (rad, + toward +y = left) and climb angle (rad, + up) of a world velocity."""
+    v = np.asarray(v, float)
+    return float(np.arctan2(v[1], v[0])), float(np.arctan2(v[2], np.hypot(v[0], v[1])))
+
+
+def wrap(a: float | np.ndarray) -> float | np.ndarray:
+    """Angle(s) wrapped to (-pi, pi]."""
+    return -((-np.asarray(a) + np.pi) % (2 * np.pi) - np.pi)
+
+
+def dof_angles(fl: DoveFlight, qpos: np.ndarray) -> np.ndarray:
+    """(n, 14) angles of the 14 DOF from (n, nq) positions (a tendon DOF: its length, the
+    coefficient-weighted sum of its joints)."""
+    m, dv = fl.model, fl.dove
+    qpos = np.atleast_2d(qpos)
+    out = np.where(dv.qadr >= 0, qpos[:, np.maximum(dv.qadr, 0)], 0.0)
+    for i in np.flatnonzero(dv.qadr < 0):
+        t = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, DOF_NAMES[i])
+        a, k = m.tendon_adr[t], m.tendon_num[t]
+        for w in range(a, a + k):
+            out[:, i] += m.wrap_prm[w] * qpos[:, m.jnt_qposadr[m.wrap_objid[w]]]
+    return out
+
+
+def model_dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) of the 14 DOF from the compiled model (joint ranges; the tail spread's
+    tendon range); +-inf where a DOF is unlimited."""
+    m, dv = fl.model, fl.dove
+    lo, hi = np.full(len(dv.qadr), -np.inf), np.full(len(dv.qadr), np.inf)
+    for i in range(len(dv.qadr)):
+        if dv.qadr[i] >= 0:
+            j = int(np.flatnonzero(m.jnt_qposadr == dv.qadr[i])[0])
+            if m.jnt_limited[j]:
+                lo[i], hi[i] = m.jnt_range[j]
+        else:
+            t = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, DOF_NAMES[i])
+            if t >= 0 and m.tendon_limited[t]:
+                lo[i], hi[i] = m.tendon_range[t]
+    return lo, hi
+
+
+def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
+              ref: ReferenceWingbeat | None = None, record: bool = False) -> CycleEnd:
+    """Fly one wingbeat of parameters ``p`` from ``snap`` (``None``: from the flight's
+    current state) and leave the flight at its end.
+
+    Raises :class:`~flapsim.errors.SimulationError` (one line) when the simulation
+    diverges; the flight is then in an undefined state (restore a snapshot).
+    """
+    from mujoco import rollout
+
+    split(p)  # shape / finiteness check with a one-line error
+    m, d = fl.model, fl.data
+    if snap is not None:
+        restore(fl, snap)
+    ref = ref or fl.ref
+    ctrl, _, _ = control_table(ref, p, m.opt.timestep, fl.kp, fl.kv)
+    s0 = np.empty(mujoco.mj_stateSize(m, STATE_SPEC))
+    mujoco.mj_getState(m, d, s0, STATE_SPEC)
+    warm = d.qacc_warmstart.copy()
+    n = len(ctrl)
+    states, _ = rollout.rollout(m, d, s0[None], ctrl[None], initial_warmstart=warm[None],
+                                skip_checks=False)
+    states = states[0]
+    if not np.all(np.isfinite(states[-1])):
+        raise SimulationError(f"dove simulation diverged within a wingbeat at t={states[-1, 0]:.4f} s "
+                              "(non-finite state): the wingbeat or start state is out of reach")
+    if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
+        d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
+        raise SimulationError("dove simulation diverged within a wingbeat (bad accelerations; "
+                              "MuJoCo reset the state): the wingbeat or start state is out of reach")
+    mujoco.mj_setState(m, d, states[-1], STATE_SPEC)
+    mujoco.mj_forward(m, d)
+    DISPATCHER.check(d)
+    lo, hi = model_dof_ranges(fl)
+    q = dof_angles(fl, states[:, 1:1 + m.nq])
+    excess = float(max(0.0, np.max(lo - q), np.max(q - hi)))
+    mujoco.mj_subtreeVel(m, d)
+    com_vel = d.subtree_linvel[fl.dove.trunk].copy()
+    qpos = states[:, 1:1 + m.nq].copy() if record else None
+    return CycleEnd(Snapshot(states[-1].copy(), d.qacc_warmstart.copy()), reduced_state(d),
+                    d.qpos[0:3].copy(), d.qpos[3:7].copy(), com_vel, n * float(m.opt.timestep),
+                    excess, qpos)
+
+
