@@ -18,7 +18,15 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from flapsim.bird.model import DOF_NAMES, Dove, DoveParams, build_xml, fan_ratio
+from flapsim.bird.model import (
+    DOF_NAMES,
+    Dove,
+    DoveParams,
+    build_xml,
+    fan_ratio,
+    rectrix_joints,
+    rectrix_spread_gains,
+)
 from flapsim.bird.wingbeat import (
     ReferenceWingbeat,
     control_table,
@@ -103,10 +111,13 @@ class DoveFlight:
         self.kp, self.kv = affine_gains(m)
         self._free = m.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
         self._tendon = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, "tail_spread")
-        self._tail = [m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]
-                      for n in ("tail_spread_l", "tail_spread_r")]
-        self._tail_v = [m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]
-                        for n in ("tail_spread_l", "tail_spread_r")]
+        # the tail fan: each rectrix hinge's qpos/qvel address, its share g of the spread and
+        # its weight c in the tail_spread tendon (s = c . q)
+        jids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)
+                for n in rectrix_joints(self.dove.params)]
+        self._tail_q = m.jnt_qposadr[jids]
+        self._tail_v = m.jnt_dofadr[jids]
+        self._tail_g, self._tail_c = rectrix_spread_gains(self.dove.params)
         self._fan = []
         for s in "lr":
             wrist = DOF_NAMES.index(f"{s}_wrist_flex")
@@ -128,8 +139,8 @@ class DoveFlight:
                 d.qpos[dv.qadr[i]] = q[i]
                 d.qvel[dv.dadr[i]] = qd[i]
         ts = DOF_NAMES.index("tail_spread")
-        for a, b in zip(self._tail, self._tail_v, strict=True):
-            d.qpos[a], d.qvel[b] = q[ts], qd[ts]
+        d.qpos[self._tail_q] = self._tail_g * q[ts]  # every rectrix at its share of the spread
+        d.qvel[self._tail_v] = self._tail_g * qd[ts]
         for qa, da, wrist, c in self._fan:
             d.qpos[qa], d.qvel[da] = c * q[wrist], c * qd[wrist]
 
@@ -211,8 +222,7 @@ class DoveFlight:
         qpos = states[:, 1:1 + m.nq]
         dv = self.dove
         q14 = np.where(dv.qadr >= 0, qpos[:, np.maximum(dv.qadr, 0)], 0.0)
-        q14[:, DOF_NAMES.index("tail_spread")] = 0.5 * (qpos[:, self._tail[0]]
-                                                       + qpos[:, self._tail[1]])
+        q14[:, DOF_NAMES.index("tail_spread")] = qpos[:, self._tail_q] @ self._tail_c
         self._check_warnings()
         if not (np.all(np.isfinite(states[-1]))):
             raise SimulationError(f"dove state is not finite at t={d.time:.4f} s (diverged)")

@@ -12,8 +12,8 @@ symmetric wingbeat has equal left/right angles and mirroring swaps them.
 * ``*_shoulder_twist`` + pronates (leading edge down), about the upper arm.
 * ``*_elbow_flex``     + folds the forearm forward; ``*_elbow_twist`` + pronates.
 * ``*_wrist_flex``     + folds the hand back; the primaries fan in with it.
-* ``tail_bend``        + tilts the tail up; ``tail_spread`` + opens the fan (each half-fan
-  turns outward by this angle).
+* ``tail_bend``        + tilts the tail up; ``tail_spread`` + opens the fan (the outermost
+  rectrices turn outward by this angle, the others in proportion: see below).
 
 Every actuated DOF has an anatomical range (MJCF joint ``range``; the tail spread's on its
 tendon) and a torque limit (actuator ``forcerange``), both from ``data/dove.toml`` with
@@ -26,9 +26,12 @@ primaries as the wrist extends) and a *twist* hinge about the shaft with the pap
 spring (0.6e-4 N m/rad) and damper (0.6e-5 N m s/rad), range one-sided (0 .. trailing
 edge down): the vanes are held closed against the neighbouring feather at the
 downstroke and twist open at the upstroke. 9 secondaries per forearm and 3 tertials per
-upper arm are fixed to their bone. The tail fan is two half-fans of 6 rectrices on
-hinges; the actuated ``tail_spread`` DOF is a fixed tendon (mean of the two half-fan
-angles) and a tendon spring keeps the halves symmetric.
+upper arm are fixed to their bone. The tail is one fan of 12 rectrices, each a body on
+its own hinge at the tail root (``l_r1_fan`` central .. ``l_r6_fan`` outer, the same on
+the right; + turns a rectrix outward on either side). The actuated ``tail_spread`` DOF is
+a fixed tendon reading the fan's spread, and a stiff tendon spring per rectrix (the
+primaries' mechanism) holds every rectrix at its share of it, so the fan opens with
+uniform spacing and no gap (:func:`rectrix_spread_gains`).
 
 No part of the bird collides with itself (feathers have contype = conaffinity = 0,
 bones collide only with the world): self-contacts cost ~15x in step time.
@@ -142,18 +145,16 @@ class DoveParams:
     tail_root_pos: tuple[float, float, float]
     """Tail root (bend hinge) from the trunk centre, m."""
     rectrices_per_side: int
-    """Rectrices on each half-fan."""
+    """Rectrices on each side of the fan's centre line."""
     rectrix_length: float
     """Rectrix length, m."""
     rectrix_width: float
     """Exposed rectrix width, m."""
-    tail_base_fan_deg: float
-    """Angle between neighbouring rectrices within a half-fan, deg."""
-    tail_half_gap_deg: float
-    """Angle of the innermost rectrix from the centre line, deg."""
-    tail_sym_stiffness: float
-    """Tendon spring keeping the half-fans symmetric, N m/rad."""
-    tail_sym_damping: float
+    tail_spacing_deg: float
+    """Angle between neighbouring rectrices of the closed fan, deg (uniform)."""
+    tail_fan_stiffness: float
+    """Tendon spring holding each rectrix on the fan's shape, N m/rad."""
+    tail_fan_damping: float
     """Its damper, N m s/rad."""
     rectrix_segments: int
     """Quads along a rectrix."""
@@ -217,9 +218,8 @@ class DoveParams:
                 tertial_segments=tl["segments"],
                 tail_root_pos=tuple(t["root_pos"]), rectrices_per_side=t["rectrices_per_side"],
                 rectrix_length=t["length"], rectrix_width=t["width"],
-                tail_base_fan_deg=t["base_fan_deg"], tail_half_gap_deg=t["half_gap_deg"],
-                tail_sym_stiffness=t["spread_sym_stiffness"],
-                tail_sym_damping=t["spread_sym_damping"], rectrix_segments=t["segments"],
+                tail_spacing_deg=t["closed_spacing_deg"], tail_fan_stiffness=t["fan_stiffness"],
+                tail_fan_damping=t["fan_damping"], rectrix_segments=t["segments"],
                 joint_damping=j["damping"], joint_armature=j["armature"],
                 pd_kp=pd["kp"], pd_kv=pd["kv"], timestep=pd["timestep"],
                 dof_range_deg=_per_dof(raw["limits"], "_deg"),
@@ -290,7 +290,7 @@ def torque_limits(params: DoveParams) -> tuple[np.ndarray, np.ndarray]:
 
 
 def left_feathers(p: DoveParams) -> list[fz.Feather]:
-    """All left-wing feathers and the left half-fan, in their bodies' frames."""
+    """All left-wing feathers and the left half of the tail fan, in their bodies' frames."""
     out: list[fz.Feather] = []
     le = p.leading_edge_offset
     # tertials on the upper arm (body frame origin at the shoulder, bone along +y)
@@ -323,14 +323,16 @@ def left_feathers(p: DoveParams) -> list[fz.Feather]:
         v, f = fz.strip(np.zeros(3), shaft, lead, length, p.primary_root_width,
                         p.primary_tip_width, p.primary_lead_fraction, p.primary_segments)
         out.append(_feather(f"l_p{k + 1}", "primary", f"l_p{k + 1}", v, f, shaft, p.primary_mass))
-    # rectrices on the left half-fan (origin at the tail root), inner -> outer
+    # left rectrices, central -> outer: each its own body with its origin at the tail root,
+    # meshed at its closed-fan angle (the fan hinge turns it from there)
     for k in range(p.rectrices_per_side):
-        a = np.radians(p.tail_half_gap_deg + k * p.tail_base_fan_deg)
+        a = np.radians((k + 0.5) * p.tail_spacing_deg)
         shaft = np.array([-np.cos(a), np.sin(a), 0.0])
         lead = np.array([np.sin(a), np.cos(a), 0.0])
         v, f = fz.strip(np.zeros(3), shaft, lead, p.rectrix_length, 0.6 * p.rectrix_width,
                         p.rectrix_width, 0.5, p.rectrix_segments, tip_taper=0.8)
-        out.append(_feather(f"l_r{k + 1}", "rectrix", "tail_l", v, f, shaft, rectrix_mass(p)))
+        out.append(_feather(f"l_r{k + 1}", "rectrix", f"l_r{k + 1}", v, f, shaft,
+                            rectrix_mass(p)))
     return out
 
 
@@ -355,8 +357,6 @@ def mirror_feather(fe: fz.Feather) -> fz.Feather:
 def _mirror_name(name: str) -> str:
     if name.startswith("l_"):
         return "r_" + name[2:]
-    if name == "tail_l":
-        return "tail_r"
     return name
 
 
@@ -369,6 +369,28 @@ def primary_root(p: DoveParams, k: int) -> np.ndarray:
     """Root of primary k (0-based, P1 innermost) in the hand frame: spread along the hand."""
     n = len(p.primary_angle_deg)
     return np.array([0.0, p.hand_length * k / (n - 1), 0.0])
+
+
+def rectrix_joints(p: DoveParams) -> list[str]:
+    """Fan hinge of every rectrix: left central -> outer, then right central -> outer."""
+    n = p.rectrices_per_side
+    return [f"{s}_r{k + 1}_fan" for s in "lr" for k in range(n)]
+
+
+def rectrix_spread_gains(p: DoveParams) -> tuple[np.ndarray, np.ndarray]:
+    """How the one fan spreads: (g, c), each (2 n,) in :func:`rectrix_joints` order.
+
+    Rectrix k turns by ``g_k s`` when the fan spreads by ``s`` (the tail_spread DOF: the
+    outermost pair's angle beyond the closed fan), ``g_k = (j - 1/2) / (n - 1/2)`` for the
+    j-th rectrix from the centre (1..n): uniform spacing at every spread. The tail_spread
+    tendon reads ``s = c . q`` with ``c = g / |g|^2`` (so ``c . g = 1``), and the coupling
+    springs act on ``q - g (c . q)``: an orthogonal projector whose null space is exactly the
+    spread mode, so they resist every distortion of the fan and never the spread itself.
+    """
+    n = p.rectrices_per_side
+    half = (np.arange(n) + 0.5) / (n - 0.5)
+    g = np.concatenate([half, half])
+    return g, g / (g @ g)
 
 
 def fan_ratio(p: DoveParams, k: int) -> float:
@@ -661,29 +683,41 @@ def _tail_xml(p: DoveParams, by_body) -> str:
         '        <geom name="tail_base" class="bone" size="0.007" fromto="0.01 0 0 -0.02 0 0"/>',
     ]
     for s in ("l", "r"):
-        fes = by_body[f"tail_{s}"]
-        half = _Inertia()
-        half.plates(fes)
-        L += [
-            f'        <body name="tail_{s}">',
-            f"          {_inertial_xml(half)}",
-            f'          <joint name="tail_spread_{s}" axis="{_ax(s, (0, 0, -1))}"/>',
-            *_feather_geoms(fes, "rectrix", "          "),
-            "        </body>",
-        ]
+        for k in range(p.rectrices_per_side):
+            name = f"{s}_r{k + 1}"
+            fe = by_body[name][0]
+            ri = _Inertia()
+            ri.plates([fe])
+            # + turns the rectrix outward (away from the centre line) on both sides; the hinge
+            # takes the actuated DOF's damping and armature ([joints]), as the half-fans did
+            L += [
+                f'        <body name="{name}">',
+                f"          {_inertial_xml(ri)}",
+                f'          <joint name="{name}_fan" class="rectrix" axis="{_ax(s, (0, 0, -1))}"/>',
+                *_feather_geoms([fe], "rectrix", "          "),
+                "        </body>",
+            ]
     L.append("      </body>")
     return "\n".join(L)
 
 
 def _tendons_xml(p: DoveParams) -> str:
+    joints = rectrix_joints(p)
+    g, c = rectrix_spread_gains(p)
     L = ["  <tendon>",
          f'    <fixed name="tail_spread"{_lim(p, "tail_spread", joint=False)}>',
-         '      <joint joint="tail_spread_l" coef="0.5"/><joint joint="tail_spread_r" coef="0.5"/>',
-         "    </fixed>",
-         f'    <fixed name="tail_sym" stiffness="{p.tail_sym_stiffness:.6g}" '
-         f'damping="{p.tail_sym_damping:.6g}" springlength="0">',
-         '      <joint joint="tail_spread_l" coef="1"/><joint joint="tail_spread_r" coef="-1"/>',
+         "      " + "".join(f'<joint joint="{j}" coef="{ck:.9g}"/>'
+                            for j, ck in zip(joints, c, strict=True)),
          "    </fixed>"]
+    # one coupling spring per rectrix on q_k - g_k (c . q): the fan keeps its shape
+    for k, jk in enumerate(joints):
+        coef = -g[k] * c
+        coef[k] += 1.0
+        L += [f'    <fixed name="{jk}" stiffness="{p.tail_fan_stiffness:.6g}" '
+              f'damping="{p.tail_fan_damping:.6g}" springlength="0">',
+              "      " + "".join(f'<joint joint="{j}" coef="{a:.9g}"/>'
+                                 for j, a in zip(joints, coef, strict=True)),
+              "    </fixed>"]
     for s in ("l", "r"):
         for k in range(len(p.primary_angle_deg)):
             L += [f'    <fixed name="{s}_p{k + 1}_fan" stiffness="{p.fan_stiffness:.6g}" '

@@ -117,3 +117,33 @@ def test_mjcf_carries_the_ranges_and_torque_limits(dove):
     assert -tlo[DOF_NAMES.index("l_shoulder_flap")] == pytest.approx(1.00 * 0.170 / 0.400, abs=0.01)
     # mirror-symmetric joints: one range and one limit per left/right pair
     assert np.array_equal(lo[:6], lo[6:12]) and np.array_equal(tlo[:6], tlo[6:12])
+
+
+def test_tail_is_one_fan_that_spreads_with_uniform_spacing():
+    from flapsim.bird.model import rectrix_joints
+
+    dove = Dove.load()
+    m, p = dove.model, dove.params
+    m.opt.gravity[:] = 0.0  # only the tail servo acts (the other servos hold zero)
+    d = mujoco.MjData(m)
+    ts = DOF_NAMES.index("tail_spread")
+    s = np.radians(30.0)
+    for _ in range(1200):  # 0.5 s: the spread servo settles (torque-limited ramp, then PD)
+        d.ctrl[:] = 0.0
+        d.ctrl[ts] = p.pd_kp * s  # affine servo: ctrl = kp q_target
+        mujoco.mj_step(m, d)
+    tendon = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, "tail_spread")
+    assert d.ten_length[tendon] == pytest.approx(s, abs=1e-6)
+    adr = [m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]
+           for n in rectrix_joints(p)]
+    n = p.rectrices_per_side
+    closed = (np.arange(n) + 0.5) * p.tail_spacing_deg
+    left = closed + np.degrees(d.qpos[adr[:n]])
+    right = closed + np.degrees(d.qpos[adr[n:]])
+    # one fan: the outermost pair turned by s, every rectrix in proportion, so the spacing is
+    # uniform, 4 + 30 / 5.5 = 9.4545 deg, across the centre line too (no gap between halves)
+    spacing = p.tail_spacing_deg + 30.0 / (n - 0.5)
+    assert left[-1] - closed[-1] == pytest.approx(30.0, abs=1e-4)
+    assert np.diff(left) == pytest.approx(np.full(n - 1, spacing), abs=1e-4)
+    assert 2 * left[0] == pytest.approx(spacing, abs=1e-4)  # the central pair
+    assert right == pytest.approx(left, abs=1e-9)  # mirror-symmetric fan
