@@ -332,6 +332,21 @@ class WingbeatController:
         return ControlStep(Pp, dS, S_t, e0, end, projected)
 
 
+@dataclass
+class BaseController:
+    """The base controller in the learned one's interface: always P0 (for comparisons)."""
+
+    flight: DoveFlight
+    P0: np.ndarray
+
+    def choose(self, target, snap: cycle.Snapshot | None = None, record: bool = False
+               ) -> ControlStep:
+        fl = self.flight
+        end = cycle.fly_cycle(fl, snap, self.P0, fl.ref, record=record)
+        S_t = np.asarray(target(end), float)
+        return ControlStep(self.P0.copy(), S_t - end.S, S_t, end, end, False)
+
+
 # -- a controlled flight ----------------------------------------------------------------------
 
 
@@ -370,8 +385,8 @@ class ControlledFlight:
         return float(sum(s.end.duration for s in self.steps))
 
 
-def fly_controlled(controller: WingbeatController, target, wingbeats: int,
-                   progress: bool = False) -> ControlledFlight:
+def fly_controlled(controller, target, wingbeats: int, progress: bool = False,
+                   record: bool = False) -> ControlledFlight:
     """Fly ``wingbeats`` wingbeats under ``controller`` toward ``target`` from the flight's
     current state."""
     import time
@@ -386,7 +401,7 @@ def fly_controlled(controller: WingbeatController, target, wingbeats: int,
     steps = []
     t0 = time.perf_counter()
     for _ in it:
-        steps.append(controller.choose(target))
+        steps.append(controller.choose(target, record=record))
     return ControlledFlight(steps, start, time.perf_counter() - t0)
 
 
@@ -427,3 +442,32 @@ def cruise_metrics(f: ControlledFlight, target: CruiseTarget) -> dict:
         "max_range_excess_deg": float(np.degrees(max(s.end.range_excess for s in f.steps))),
         "real_time_factor": f.simulated_s / f.wall_time if f.wall_time > 0 else float("nan"),
     }
+
+
+# -- loading --------------------------------------------------------------------------------
+
+#: The bundled controller database (``flapsim train``; see the README for the command).
+BUNDLED_DB = "dove_controller.db"
+
+
+def bundled_database_path():
+    from pathlib import Path
+
+    return Path(__file__).resolve().parent / "data" / BUNDLED_DB
+
+
+def load_controller(flight: DoveFlight, db_path=None, method: str = "knn", k: int | None = None,
+                    weights: tuple[float, float, float] = PAPER_WEIGHTS) -> WingbeatController:
+    """A controller over a database (default: the bundled one) built for ``flight``'s model;
+    a database of another model, or a foreign/corrupt file, is a one-line error."""
+    from flapsim.bird.database import load_database
+
+    path = db_path or bundled_database_path()
+    db = load_database(path, model_hash=flight.dove.hash(), require_finalized=True)
+    for name in ("dS", "dP"):
+        if name not in db.arrays:
+            raise InputError(f"{path} has no {name!r} field: not a wingbeat controller database")
+    reg = Regressor(db.arrays["dS"], db.arrays["dP"], k=k, weights=weights, method=method)
+    prov = db.header.get("provenance", {})
+    P0 = np.asarray(prov.get("P0", with_tail_bias(p0(), FlightConfig.tail_bias_deg)), float)
+    return WingbeatController(flight, reg, P0)

@@ -407,10 +407,14 @@ RANGE_TOLERANCE = np.radians(2.0)
 
 
 def pose_quat(pitch: float, roll: float, heading: float = 0.0) -> np.ndarray:
-    """Trunk quaternion with nose-up ``pitch``, ``roll`` (the sign convention of
-    :func:`flapsim.bird.flight.pitch_roll`) and ``heading`` (about +z), all rad."""
+    """Trunk quaternion with nose-up ``pitch``, ``roll`` and ``heading`` (about +z), all rad,
+    such that :func:`flapsim.bird.flight.pitch_roll` gives back (pitch, roll) (for
+    |sin roll| <= cos pitch)."""
     from flapsim.bird.flight import pitch_roll
 
+    # pitch_roll's roll is the wing axis' elevation, asin(y_z) = asin(sin(roll_euler) cos(pitch))
+    # for a heading-pitch-roll rotation: invert that, so pitch_roll returns ``roll`` exactly
+    roll = float(np.arcsin(np.clip(np.sin(roll) / max(np.cos(pitch), 1e-12), -1.0, 1.0)))
     qz = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
     qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])  # +y is left: nose up is -y
     qx = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])

@@ -1,0 +1,78 @@
+"""The controller's regression against brute force (no simulation)."""
+
+import numpy as np
+import pytest
+
+from flapsim.bird.controller import PAPER_WEIGHTS, Regressor, default_k, idw_average, weight_vector
+from flapsim.errors import InputError
+
+
+def brute_force_knn(dS, dP, x, k, w):
+    """Eq. 3-4 written out: every weighted squared distance, sort, inverse-distance average."""
+    d = np.array([(x - s) @ np.diag(w) @ (x - s) for s in dS])
+    order = np.argsort(d, kind="stable")[:k]
+    wts = 1.0 / d[order]
+    return (wts[:, None] * dP[order]).sum(axis=0) / wts.sum()
+
+
+def test_knn_equals_brute_force_on_random_data():
+    rng = np.random.default_rng(7)
+    dS = rng.normal(size=(600, 8)) * np.array([0.1, 0.1, 0.3, 0.3, 0.3, 1.0, 1.0, 1.0])
+    dP = rng.normal(size=(600, 29))
+    w = weight_vector(PAPER_WEIGHTS)
+    for k in (1, 3, 50):
+        reg = Regressor(dS, dP, k=k)
+        for _ in range(20):
+            x = rng.normal(size=8) * 0.5
+            # same numbers up to round-off of the kd-tree's distances (1e-12 relative)
+            np.testing.assert_allclose(reg.predict(x), brute_force_knn(dS, dP, x, k, w), rtol=1e-9,
+                                       atol=1e-12)
+
+
+def test_weights_are_the_papers_and_matter():
+    np.testing.assert_array_equal(weight_vector(), [0.2, 0.2, 0.24, 0.24, 0.24, 0.4, 0.4, 0.4])
+    # two samples: one off in pitch by 1, one off in angular velocity by 0.8; with w1 = 0.2
+    # and w3 = 0.4 the pitch one is nearer (0.2 < 0.4 * 0.64 = 0.256)
+    dS = np.zeros((2, 8))
+    dS[0, 0] = 1.0
+    dS[1, 5] = 0.8
+    dP = np.eye(2, 29)
+    reg = Regressor(dS, dP, k=1)
+    np.testing.assert_array_equal(reg.predict(np.zeros(8)), dP[0])
+
+
+def test_idw_average_is_eq4_and_exact_match_wins():
+    d2 = np.array([1.0, 4.0])
+    v = np.array([[1.0], [2.0]])
+    # weights 1 and 1/4: (1 + 0.5) / 1.25 = 1.2
+    assert idw_average(d2, v)[0] == pytest.approx(1.2)
+    assert idw_average(np.array([0.0, 4.0]), v)[0] == 1.0
+
+
+def test_default_k_is_half_a_percent():
+    assert default_k(10000) == 50  # the paper's 50 of 10,000
+    assert default_k(100) == 1 and default_k(10) == 1
+
+
+def test_lwlr_recovers_a_linear_map_exactly():
+    # on exactly linear data the weighted affine fit is exact (up to the small ridge):
+    # k-NN averaging cannot do this away from the samples' mean
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(8, 29))
+    dS = rng.normal(size=(400, 8))
+    dP = dS @ A + 0.5
+    reg = Regressor(dS, dP, k=60, method="lwlr", ridge=1e-9)
+    x = rng.normal(size=8) * 0.3
+    np.testing.assert_allclose(reg.predict(x), x @ A + 0.5, atol=1e-5)
+
+
+def test_bad_inputs_are_one_line_errors():
+    with pytest.raises(InputError):
+        Regressor(np.zeros((3, 7)), np.zeros((3, 29)))
+    with pytest.raises(InputError):
+        Regressor(np.full((3, 8), np.nan), np.zeros((3, 29)))
+    with pytest.raises(InputError):
+        Regressor(np.zeros((3, 8)), np.zeros((3, 29)), method="ann")
+    reg = Regressor(np.zeros((3, 8)), np.zeros((3, 29)))
+    with pytest.raises(InputError):
+        reg.predict(np.full(8, np.nan))
