@@ -20,8 +20,8 @@ from flapsim import __version__
 from flapsim.errors import FlapsimError
 
 # Order is the order ``flapsim --help`` lists them in.
-COMMANDS: tuple[str, ...] = ("fly", "swim", "sweep", "modes", "creature", "animate", "demo",
-                             "bench")
+COMMANDS: tuple[str, ...] = ("fly", "train", "swim", "sweep", "modes", "creature", "animate",
+                             "demo", "bench")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,140 @@
+"""``flapsim train``: build the dove's wingbeat-controller sample database (phase 1:
+perturbed wingbeats around the reference; phase 2: from a phase-1 database) on local
+worker processes or a Ray cluster. Rerunning the same command after an interruption
+resumes it; the finished file is the same whatever the workers, backend or
+interruptions."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from flapsim.errors import InputError
+
+HELP = ("train the dove's controller database: sample wingbeats in parallel (local processes "
+        "or Ray), resumable, into one database file")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--samples", type=int, required=True, metavar="N",
+                   help="accepted samples to collect (the first N by sample index)")
+    p.add_argument("--phase", type=int, choices=(1, 2), default=1,
+                   help="1: perturbations of the reference wingbeat; 2: refine from --from DB")
+    p.add_argument("--sigma", type=float, default=None,
+                   help="perturbation scale (default: the sampler's, from the paper)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="parallel workers (default: one per CPU core)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local processes, or Ray actors (pip install 'flapsim[cluster]')")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster to join (default: start a private local Ray instance)")
+    p.add_argument("--out", required=True, metavar="DB",
+                   help="the database file to create, or to resume if it exists")
+    p.add_argument("--from", dest="from_db", default=None, metavar="DB",
+                   help="phase 2 only: the phase-1 database to start from")
+    p.add_argument("--chunk-size", type=int, default=None, metavar="C",
+                   help="samples per work unit (default 16, or the resumed file's)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _writable_file(path: str, flag: str) -> Path:
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{flag} {path} is a folder; name a file")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{flag} {path}: folder {parent} does not exist (create it first)")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {path}: folder {parent} is not writable")
+    if p.exists() and not os.access(p, os.R_OK | os.W_OK):
+        raise InputError(f"{flag} {path} exists but is not readable and writable")
+    return p
+
+
+def validate(args: argparse.Namespace) -> None:
+    """Check every argument before any work (one-line InputError)."""
+    if not (1 <= args.samples <= 10**9):
+        raise InputError(f"--samples must be 1..1e9, got {args.samples}")
+    if args.workers is not None and not (1 <= args.workers <= 4096):
+        raise InputError(f"--workers must be 1..4096, got {args.workers}")
+    if args.sigma is not None and not (math.isfinite(args.sigma) and args.sigma > 0):
+        raise InputError(f"--sigma must be a finite number > 0, got {args.sigma}")
+    if args.chunk_size is not None and not (1 <= args.chunk_size <= 10**6):
+        raise InputError(f"--chunk-size must be 1..1e6, got {args.chunk_size}")
+    if args.address is not None and args.backend != "ray":
+        raise InputError("--address is only for --backend ray")
+    if args.backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise InputError("--backend ray needs Ray: pip install 'flapsim[cluster]'") from None
+    out = _writable_file(args.out, "--out")
+    if args.json:
+        js = _writable_file(args.json, "--json")
+        if js.resolve() == out.resolve():
+            raise InputError("--json and --out name the same file")
+    if args.phase == 1 and args.from_db is not None:
+        raise InputError("--from is only for --phase 2")
+    if args.phase == 2:
+        if args.from_db is None:
+            raise InputError("--phase 2 needs --from DB (a phase-1 database)")
+        src = Path(args.from_db)
+        if not src.is_file():
+            raise InputError(f"--from {args.from_db} does not exist or is not a file")
+        if src.resolve() == out.resolve():
+            raise InputError("--from and --out name the same file; choose another --out")
+
+
+def phase1(args: argparse.Namespace) -> tuple[Any, type]:
+    """The phase-1 sampler: (config, worker class)."""
+    try:
+        from flapsim.bird.sampling import SampleWorker, SamplingConfig
+    except ModuleNotFoundError as exc:
+        if exc.name != "flapsim.bird.sampling":
+            raise
+        raise InputError("phase 1 sampling is not built yet (flapsim.bird.sampling is missing)") \
+            from None
+    kwargs: dict[str, Any] = {"seed": args.seed}
+    if args.sigma is not None:
+        kwargs["sigma"] = args.sigma
+    return SamplingConfig(**kwargs), SampleWorker
+
+
+def run_phase2(args: argparse.Namespace) -> tuple[Any, type]:
+    """The phase-2 sampler, from the phase-1 database ``args.from_db``: (config,
+    worker class). Hook for phase 2."""
+    raise InputError("phase 2 is not built yet")
+
+
+def train_from_args(args: argparse.Namespace, config: Any, worker_cls: type, kind: str) -> dict:
+    """Run :func:`flapsim.bird.training.train` for parsed arguments and print the summary."""
+    from flapsim.bird.training import train
+
+    workers = args.workers or os.cpu_count() or 1
+    s = train(config, args.out, args.samples, worker_cls, workers=workers, backend=args.backend,
+              address=args.address, chunk_size=args.chunk_size,
+              progress=not getattr(args, "no_progress", False), kind=kind)
+    rej = ", ".join(f"{k} {v}" for k, v in s["rejected"].items()) or "none"
+    if s["already_complete"]:
+        print(f"{s['out']} is already complete: {s['samples']} samples ({s['examined']} examined, "
+              f"rejected: {rej})")
+    else:
+        resumed = f", resumed at {s['resumed_samples']}" if s["resumed_samples"] else ""
+        print(f"{s['out']}: {s['samples']} samples from {s['examined']} examined "
+              f"(acceptance {s['acceptance']:.1%}; rejected: {rej}){resumed}")
+        print(f"  {s['wall_s']:.1f} s, {s['samples_per_s']:.1f} samples/s on {s['workers']} "
+              f"{s['backend']} worker{'s' if s['workers'] != 1 else ''} "
+              f"(start-up {s['startup_s']:.1f} s), model {s['model_hash']}, seed {s['seed']}")
+    return {"phase": args.phase, **s}
+
+
+def run(args: argparse.Namespace) -> dict:
+    validate(args)
+    if args.phase == 1:
+        config, worker_cls = phase1(args)
+    else:
+        config, worker_cls = run_phase2(args)
+    return train_from_args(args, config, worker_cls, kind=f"dove-phase{args.phase}")

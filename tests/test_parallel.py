@@ -1,0 +1,67 @@
+"""The chunk executor: same results in process and in spawned processes, one worker
+object per process, early stop and errors leave no process behind."""
+
+import multiprocessing as mp
+import sys
+
+import numpy as np
+import pytest
+
+from flapsim.bird._testing import FakeConfig, FakeWorker
+from flapsim.errors import InputError
+from flapsim.parallel import ChunkExecutor
+
+CHUNKS = [(k * 5, (k + 1) * 5) for k in range(12)]
+
+
+def _by_start(results):
+    return {r.start: r for r in results}
+
+
+def test_processes_match_in_process_and_build_the_worker_once():
+    cfg = FakeConfig(seed=5, sleep_s=0.002)
+    with ChunkExecutor(FakeWorker, cfg, workers=1) as ex:
+        ref = _by_start(ex.map_unordered(CHUNKS))
+        head = ex.header()
+    with ChunkExecutor(FakeWorker, cfg, workers=2) as ex:
+        assert ex.capacity == 4
+        got = _by_start(ex.map_unordered(iter(CHUNKS)))
+        assert ex.header() == head
+    assert sorted(got) == sorted(ref) == [s for s, _ in CHUNKS]
+    for s, r in ref.items():
+        np.testing.assert_array_equal(got[s].index, r.index)
+        for k in r.arrays:
+            np.testing.assert_array_equal(got[s].arrays[k], r.arrays[k])
+        assert got[s].rejected == r.rejected
+    # one worker object per process, reused for every chunk it ran
+    pids = {r.worker[0] for r in got.values()}
+    assert all(r.worker[1] == 1 for r in got.values())
+    assert sum(max(r.worker[2] for r in got.values() if r.worker[0] == p) for p in pids) >= 12
+    assert not mp.active_children()
+
+
+def test_early_stop_and_worker_errors_stop_every_process():
+    with ChunkExecutor(FakeWorker, FakeConfig(sleep_s=0.01), workers=2) as ex:
+        for _ in ex.map_unordered(CHUNKS):
+            break
+    assert not mp.active_children()
+    with pytest.raises(ValueError, match="fake failure at sample 23"):
+        with ChunkExecutor(FakeWorker, FakeConfig(fail_at=23), workers=2) as ex:
+            list(ex.map_unordered(CHUNKS))
+    assert not mp.active_children()
+    with pytest.raises(ValueError, match="fake failure"):  # the same in process
+        with ChunkExecutor(FakeWorker, FakeConfig(fail_at=23), workers=1) as ex:
+            list(ex.map_unordered(CHUNKS))
+
+
+def test_bad_arguments_and_missing_ray(monkeypatch):
+    with pytest.raises(InputError, match="workers"):
+        ChunkExecutor(FakeWorker, FakeConfig(), workers=0)
+    with pytest.raises(InputError, match="backend"):
+        ChunkExecutor(FakeWorker, FakeConfig(), backend="mpi")
+    with pytest.raises(InputError, match="only for the ray backend"):
+        ChunkExecutor(FakeWorker, FakeConfig(), address="10.0.0.1:6379")
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(InputError) as e:
+        ChunkExecutor(FakeWorker, FakeConfig(), workers=2, backend="ray")
+    assert "pip install 'flapsim[cluster]'" in str(e.value) and "\n" not in str(e.value)
