@@ -213,8 +213,10 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
     next_k = 0
     with contextlib.ExitStack() as stack:
         stack.enter_context(_sigterm_as_interrupt())
+        t0 = time.perf_counter()
         ex = stack.enter_context(ChunkExecutor(worker_cls, config, workers, backend, address))
         prov = ex.header()
+        startup = time.perf_counter() - t0  # start the pool and build one worker
         header = {**ident, "model_hash": prov.get("model_hash"), "provenance": prov,
                   "chunk_size": chunk_size}
         if existing is not None:
@@ -272,4 +274,4 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
                 bar.update(total - shown)
                 shown = total
             bar.set_postfix(rejected=examined - accepted, refresh=False)
-        return ex.startup_s
+        return startup
