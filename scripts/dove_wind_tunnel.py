@@ -1,28 +1,66 @@
-"""Fixed-trunk "wind tunnel": cycle-averaged lift/weight, thrust-drag and pitch moment of
-the reference wingbeat (+17 deg tail bias) in a 5-9 m/s headwind, per coefficient table.
+"""Fixed-trunk "wind tunnel": cycle-averaged lift/weight, thrust-drag, pitch moment and
+lift-to-drag ratio of the reference wingbeat (+17 deg tail bias) in a headwind, per
+coefficient table; and each table's static L/D at 10, 20, 30 deg.
 
     PYTHONPATH=. python scripts/dove_wind_tunnel.py [--json out.json]
 
 Measure weight support here before free flight (REFERENCE_DATA). Thrust > 0 means the
-flapping wings out-pull their own drag; the trunk has no drag polygons (as in the paper,
-which computes aerodynamics on feathers only).
+flapping wings out-pull their own drag and the body's (the trunk carries bluff-body drag
+polygons, ``flapsim.bird.flight.body_polygons``).
+
+Cycle L/D: the lift terms over the drag terms of every feather polygon, as magnitudes
+summed over the last cycle (``sum |L_i| / sum |D_i|``): the force-weighted mean L/D the
+feathers work at, comparable with a table's static CL/CD.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 
-from flapsim.bird.flight import wind_tunnel
-from flapsim.bird.model import DoveParams
-from flapsim.bird.wingbeat import p0, with_tail_bias
+import mujoco
+import numpy as np
 
-TABLES = ("dickinson1999_lowdrag", "dickinson1999", "wang2004", "feather_stall", "flat_plate")
+from flapsim.bird.flight import BODY_TABLE, DoveFlight, FlightConfig, wind_tunnel
+from flapsim.bird.model import Dove, DoveParams, build_xml
+from flapsim.bird.wingbeat import control_table, p0, reference_wingbeat, with_tail_bias
+from flapsim.fluid.coefficients import get_table
+from flapsim.sim.loading import load_model
+
+TABLES = ("dickinson1999_profile", "dickinson1999_lowdrag", "dickinson1999", "wang2004",
+          "feather_stall", "flat_plate")
+
+
+def cycle_lift_to_drag(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: float,
+                       table: str, cycles: int = 3) -> float:
+    """Feathers' sum |lift| / sum |drag| over the last of ``cycles`` wingbeats, welded trunk
+    (the same set-up as :func:`flapsim.bird.flight.wind_tunnel`)."""
+    model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg), is_xml=True)
+    fl = DoveFlight(Dove.from_model(model, params), reference_wingbeat(), table,
+                    (-speed, 0.0, 0.0), use_rollout=False)
+    try:
+        fl.reset(FlightConfig(speed=0.0), p)
+        m, d = fl.model, fl.data
+        ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
+        for _ in range(cycles - 1):
+            for k in range(len(ctrl)):
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_step(m, d)
+        feathers = fl.polygons.table != BODY_TABLE
+        lift = drag = 0.0
+        for k in range(len(ctrl)):
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            rep = fl.aero.evaluate(d)
+            lift += float(np.linalg.norm(rep.lift[feathers], axis=1).sum())
+            drag += float(np.linalg.norm(rep.drag[feathers], axis=1).sum())
+        return lift / drag
+    finally:
+        fl.close()
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--speeds", default="5,6,7,8,9")
+    ap.add_argument("--speeds", default="6,7,8")
     ap.add_argument("--pitches", default="0,5,10")
     ap.add_argument("--tables", default=",".join(TABLES))
     ap.add_argument("--json", default=None)
@@ -31,16 +69,24 @@ def main() -> None:
     p = with_tail_bias(p0(), 17.0)
     rows = []
     for table in args.tables.split(","):
-        print(f"table {table}")
+        t = get_table(table)
+        static = {f"{a}": float(np.divide(*t.at(float(a)))) for a in (10, 20, 30)}
+        print(f"table {table}: static L/D " + ", ".join(f"{a} deg {v:.2f}"
+                                                        for a, v in static.items()))
         for pitch in (float(x) for x in args.pitches.split(",")):
             cells = []
             for speed in (float(x) for x in args.speeds.split(",")):
                 r = wind_tunnel(params, p, speed, pitch, cycles=3, table=table)
-                rows.append({"table": table, **dataclasses.asdict(r)})
+                ld = cycle_lift_to_drag(params, p, speed, pitch, table)
+                rows.append({"table": table, "speed": speed, "pitch_deg": pitch,
+                             "lift_per_weight": r.lift_per_weight,
+                             "thrust_per_weight": r.thrust_per_weight,
+                             "pitch_moment": r.pitch_moment, "cycle_lift_to_drag": ld,
+                             "upstroke_area_ratio": r.upstroke_area_ratio,
+                             "static_lift_to_drag": static})
                 cells.append(f"{speed:.0f} m/s L/W {r.lift_per_weight:4.2f} T/W "
-                             f"{r.thrust_per_weight:+.2f} M {1e3 * r.pitch_moment:+5.1f} mNm")
+                             f"{r.thrust_per_weight:+.2f} L/D {ld:4.2f}")
             print(f"  pitch {pitch:4.1f} deg: " + " | ".join(cells))
-        print(f"  upstroke/downstroke projected feather area {rows[-1]['upstroke_area_ratio']:.2f}")
     if args.json:
         from flapsim.io import write_json
 

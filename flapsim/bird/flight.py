@@ -2,8 +2,9 @@
 
 Every step MuJoCo runs the 14 PD servos (affine actuators, see :mod:`flapsim.sim.pd`)
 toward the wingbeat's targets and the surface-force engine adds drag and lift on every
-feather triangle (the flight paper's eq. 7-9) through the passive dispatcher. Nothing
-else acts on the bird but gravity.
+feather triangle (the flight paper's eq. 7-9) and bluff-body drag on the trunk
+(:func:`body_polygons`) through the passive dispatcher. Nothing else acts on the bird
+but gravity.
 
 Per wingbeat, the per-step controls are precomputed (:func:`~flapsim.bird.wingbeat.
 control_table`) and the cycle is stepped either in a Python loop or, by default, inside
@@ -35,7 +36,7 @@ from flapsim.bird.wingbeat import (
     with_tail_bias,
 )
 from flapsim.errors import InputError, SimulationError
-from flapsim.fluid.coefficients import get_table
+from flapsim.fluid.coefficients import bluff_body, get_table
 from flapsim.fluid.flow import FlowField, Uniform
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
 from flapsim.sim.callbacks import DISPATCHER
@@ -51,9 +52,11 @@ AIR_DENSITY = 1.225  # kg/m^3, the flight paper (sec. 6)
 class FlightConfig:
     """Settings of the base controller and its standard cruise start."""
 
-    table: str = "dickinson1999_lowdrag"
-    """Feather CL/CD table: Dickinson et al. 1999 quasi-steady flapping-wing fit with the
-    drag floor lowered to CD(0) = 0.05 (bird wings 0.03-0.13, Withers 1981)."""
+    table: str = "dickinson1999_profile"
+    """Feather CL/CD table: Dickinson et al. 1999 quasi-steady flapping-wing fit with its
+    viscous (low-angle) drag scaled to a bird wing's profile drag CD0 = 0.05 (Withers 1981:
+    0.03-0.13) and the fit unchanged at high angle of attack
+    (:func:`~flapsim.fluid.coefficients.dickinson1999_profile`)."""
     tail_bias_deg: float = 17.0
     """Tail bend added to the reference wingbeat (paper sec. 7: +17 deg, tail up)."""
     speed: float = 7.0
@@ -68,9 +71,37 @@ class FlightConfig:
 
 def feather_polygons(dove: Dove) -> PolygonSet:
     """Every feather triangle as a force polygon (body frame; forward = toward the leading
-    edge; one coefficient table)."""
+    edge; coefficient table 0, the feather table)."""
     bodies, tris, fwd, names = dove.feather_triangles()
     return PolygonSet.from_triangles(bodies, tris, forward=fwd, table=0, labels=names)
+
+
+#: Index of the bluff-body table in :class:`DoveFlight`'s table list (feathers: 0).
+BODY_TABLE = 1
+
+
+def body_polygons(dove: Dove) -> PolygonSet:
+    """The trunk with head as a bluff body: its three orthogonal cross-sections through the
+    trunk centre, each a rectangle with the area of the trunk ellipsoid's section
+    (``pi b c`` frontal, ``pi a c`` side, ``pi a b`` plan), on the bluff-body table
+    (:func:`~flapsim.fluid.coefficients.bluff_body`, ``params.body_drag_cd``): drag
+    ``1/2 rho V^2 CD A_frontal`` head-on, no lift, no moment about the trunk centre. The
+    frontal section is the reference area of the bird-body drag coefficients; the head
+    lies mostly within it seen from ahead (Pennycuick's allometric body frontal area for
+    0.17 kg, 0.00813 m^0.666 = 2.5e-3 m^2, against this trunk's 3.0e-3 m^2)."""
+    a, b, c = dove.params.trunk_semi_axes
+    h = np.sqrt(np.pi) / 2  # a rectangle of half-sides h*u, h*v has area pi u v
+    quads = []
+    for axis, (u, v) in ((0, (b, c)), (1, (a, c)), (2, (a, b))):
+        i, j = [k for k in range(3) if k != axis]
+        corners = []
+        for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+            p = np.zeros(3)
+            p[i], p[j] = su * h * u, sv * h * v
+            corners.append(p)
+        quads.append(corners)
+    return PolygonSet.from_polygons(dove.trunk, np.array(quads), table=BODY_TABLE,
+                                    labels=("body_frontal", "body_side", "body_plan"))
 
 
 @dataclass
@@ -103,10 +134,12 @@ class DoveFlight:
         m = self.dove.model
         self.model = m
         self.data = mujoco.MjData(m)
-        self.polygons = feather_polygons(self.dove)
+        self.polygons = PolygonSet.concat([feather_polygons(self.dove),
+                                           body_polygons(self.dove)])
         self.flow = FlowField([Uniform(self.wind)])
-        self.aero = SurfaceForces(m, self.polygons, [get_table(self.table)],
-                                  FluidParams(AIR_DENSITY), self.flow, name="dove feathers")
+        self.aero = SurfaceForces(m, self.polygons,
+                                  [get_table(self.table), bluff_body(self.dove.params.body_drag_cd)],
+                                  FluidParams(AIR_DENSITY), self.flow, name="dove feathers and body")
         self.registration = self.aero.register(self.data)
         self.kp, self.kv = affine_gains(m)
         self._free = m.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
@@ -306,8 +339,9 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
         M = 0.0
         trunk = d.xpos[dove.trunk].copy()
         down_area, up_area = [], []
-        nz = np.array(fl.polygons.normal)
-        areas = fl.polygons.area
+        feathers = fl.polygons.table != BODY_TABLE
+        nz = np.array(fl.polygons.normal)[feathers]
+        areas = fl.polygons.area[feathers]
         ds = fl.ref.period * split_w(p) * 0.55
         for k in range(len(ctrl)):
             d.ctrl[:] = ctrl[k]
@@ -317,7 +351,7 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
             F += f.sum(axis=0)
             r = rep.points - trunk
             M += float(np.sum(r[:, 0] * f[:, 2] - r[:, 2] * f[:, 0]))
-            R = d.xmat[fl.polygons.body].reshape(-1, 3, 3)
+            R = d.xmat[fl.polygons.body[feathers]].reshape(-1, 3, 3)
             proj = float(np.sum(areas * np.abs(np.einsum("nij,nj->ni", R, nz)[:, 2])))
             (down_area if k * m.opt.timestep < ds else up_area).append(proj)
         DISPATCHER.check(d)

@@ -88,6 +88,9 @@ class DoveParams:
     """Head sphere radius, m."""
     head_mass_fraction: float
     """Share of the trunk+head mass in the head (inertia only)."""
+    body_drag_cd: float
+    """Bluff-body drag coefficient of trunk and head on the trunk's frontal section
+    (Pennycuick et al. 1988: bird bodies 0.2-0.4)."""
     shoulder_pos: tuple[float, float, float]
     """Left shoulder joint from the trunk centre, m (right: mirrored)."""
     shoulder_pitch_deg: float
@@ -199,7 +202,7 @@ class DoveParams:
                 forearm_mass=b["forearm_mass_g"] * g, hand_mass=b["hand_mass_g"] * g,
                 tail_mass=b["tail_mass_g"] * g, trunk_semi_axes=tuple(b["trunk_semi_axes"]),
                 head_offset=tuple(b["head_offset"]), head_radius=b["head_radius"],
-                head_mass_fraction=b["head_mass_fraction"],
+                head_mass_fraction=b["head_mass_fraction"], body_drag_cd=b["drag_cd"],
                 shoulder_pos=tuple(w["shoulder_pos"]), shoulder_pitch_deg=w["shoulder_pitch_deg"],
                 upper_arm_length=w["upper_arm_length"], forearm_length=w["forearm_length"],
                 hand_length=w["hand_length"], leading_edge_offset=w["leading_edge_offset"],

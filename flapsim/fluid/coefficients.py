@@ -131,8 +131,13 @@ def dickinson1999(cd0: float | None = None) -> CoefficientTable:
 
     The fit's small lift offsets at 0 and 90 deg (0.03, 0.10) are tapered to zero within
     10 deg so the 0..180 table is continuous; the peak (CL 1.8 near 45 deg) is untouched.
-    ``cd0`` (optional) shifts the drag curve so that CD(0) = cd0: the robofly's 0.39 is
-    high for a feathered wing (REFERENCE_DATA; bird wings 0.03-0.13, Withers 1981).
+    ``cd0`` (optional) shifts the WHOLE drag curve down by ``CD(0) - cd0`` so that
+    CD(0) = cd0: the robofly's 0.39 is high for a feathered wing (REFERENCE_DATA; bird
+    wings 0.03-0.13, Withers 1981). This is ``dickinson1999_lowdrag`` (cd0 = 0.05): CD is
+    Dickinson's minus 0.343 at EVERY angle, including the separated-flow angles where the
+    drag is pressure drag that the Reynolds number does not lower (at 90 deg: 3.46 -> 3.12,
+    while CL is unchanged), so that table also lowers the drag of the stalled wing, which
+    no measurement supports. :func:`dickinson1999_profile` lowers only the viscous part.
     """
     half = (N_SAMPLES + 1) // 2
     a_deg = AOA_DEG[:half]
@@ -147,6 +152,64 @@ def dickinson1999(cd0: float | None = None) -> CoefficientTable:
                                np.concatenate([cd, np.zeros(half - 1)]))
     return CoefficientTable(
         name, full_cl, full_cd, "Dickinson, Lehmann & Sane 1999, Science 284:1954 (robofly fit)"
+    )
+
+
+def dickinson1999_profile(cd0: float = 0.05) -> CoefficientTable:
+    """The Dickinson 1999 fit with a bird wing's profile drag at low angle of attack and the
+    fit itself at high angle of attack.
+
+    The robofly's drag splits into a normal-force (pressure) part, ``CL tan a`` (the lift
+    and drag of a force normal to the plate), which does not depend on Reynolds number,
+    and a viscous remainder ``v(a) = CD(a) - CL(a) tan a``: 0.39 at 0 deg, 0.29 at 10,
+    0.18 at 20, 0.06 at 30 and none from 35.5 deg on. Only the viscous part belongs to the
+    robofly's Re ~ 10^2; at a bird wing's Re (1e4-5e4) it is the profile drag, 0.03-0.13
+    at zero lift (Withers 1981, J Exp Biol 90:143). So the viscous part is scaled by
+    ``cd0 / v(0)``: ``CD = CL tan a + v(a) cd0 / v(0)`` where ``v > 0``, and ``CD`` equals
+    Dickinson's wherever ``v <= 0`` (from 35.5 deg up). CL is Dickinson's unchanged. At
+    0/10/20/30 deg: 0.05 / 0.144 / 0.43 / 0.90 against Dickinson's 0.39 / 0.40 / 0.59 / 0.95
+    (``dickinson1999_lowdrag``: 0.05 / 0.05 / 0.25 / 0.61, shifted everywhere).
+    """
+    base = dickinson1999()
+    half = (N_SAMPLES + 1) // 2
+    a = _A[:half]
+    cl, cd = base.cl[:half], base.cd[:half]
+    pressure = np.zeros(half)
+    inner = a < np.deg2rad(60.0)  # tan a stays finite; v turns negative at 35.5 deg anyway
+    pressure[inner] = cl[inner] * np.tan(a[inner])
+    viscous = cd - pressure
+    # the viscous part's first sign change ends the blend: from there on, pure Dickinson
+    stop = int(np.argmax(viscous <= 0.0))
+    w = np.zeros(half)
+    w[:stop] = viscous[:stop] / viscous[0]
+    cd_new = cd - (viscous[0] - cd0) * w
+    full_cl, full_cd = _mirror(cl, cd_new)
+    return CoefficientTable(
+        "dickinson1999_profile" if cd0 == 0.05 else f"dickinson1999_profile_cd0_{cd0:g}",
+        full_cl, full_cd,
+        "Dickinson, Lehmann & Sane 1999 (robofly fit); viscous part scaled to bird-wing "
+        f"profile drag CD0 = {cd0:g} (Withers 1981 JEB 90:143: 0.03-0.13)",
+    )
+
+
+def bluff_body(cd: float = 0.3) -> CoefficientTable:
+    """A bluff body's cross-section: no lift, drag ``cd sin a`` on the section's area.
+
+    ``a`` is the angle between the flow and the section's plane, so flow square to the
+    section (a = 90 deg) gives the full ``cd`` on its area, flow along it nothing. Three
+    orthogonal cross-sections of a body (areas A_x, A_y, A_z) then give drag
+    ``1/2 rho V^2 cd (A_x |u_x| + A_y |u_y| + A_z |u_z|)`` for a flow direction ``u``: exact
+    head-on, and within +41% (flow at 45 deg between two equal sections) of the projected
+    area ``sqrt(sum (A_i u_i)^2)`` in between. Bird bodies: cd 0.2-0.4 on the frontal
+    area (frozen bodies in a wind tunnel, Pennycuick, Obrecht & Fuller 1988, J Exp Biol
+    135:253; Tucker 1990, J Exp Biol 149:449).
+    """
+    if not (np.isfinite(cd) and cd >= 0):
+        raise InputError(f"bluff-body drag coefficient must be >= 0, got {cd}")
+    return CoefficientTable(
+        "bluff_body" if cd == 0.3 else f"bluff_body_cd_{cd:g}",
+        np.zeros(N_SAMPLES), cd * np.abs(np.sin(_A)),
+        "bluff-body drag on cross-sections (Pennycuick et al. 1988 JEB 135:253; Tucker 1990)",
     )
 
 
@@ -187,6 +250,8 @@ TABLES: dict[str, Callable[[], CoefficientTable]] = {
     "feather_stall": feather_stall,
     "dickinson1999": dickinson1999,
     "dickinson1999_lowdrag": lambda: dickinson1999(cd0=0.05),
+    "dickinson1999_profile": dickinson1999_profile,
+    "bluff_body": bluff_body,
     "wang2004": wang2004,
     "hoerner_plate": hoerner_plate,
 }

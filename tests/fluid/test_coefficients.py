@@ -70,3 +70,46 @@ def test_bad_tables_are_refused():
     t = CoefficientTable.from_samples("m", [0, 90, 180], [0, 0, 0], [0.1, 2.0, 0.1])
     assert t.at(45.0)[1] == pytest.approx(1.05)
     assert AOA_DEG[1] == 0.5
+
+
+def _dickinson_fit(a_deg):
+    cl = 0.225 + 1.58 * np.sin(np.deg2rad(2.13 * a_deg - 7.20))
+    cd = 1.92 - 1.55 * np.cos(np.deg2rad(2.04 * a_deg - 9.82))
+    return cl, cd
+
+
+def test_lowdrag_is_dickinson_shifted_at_every_angle():
+    t, low = dickinson1999(), get_table("dickinson1999_lowdrag")
+    shift = 0.05 - _dickinson_fit(0.0)[1]  # -0.343: the robofly's CD(0) 0.393 down to 0.05
+    assert shift == pytest.approx(-0.343, abs=1e-3)
+    assert np.allclose(low.cd - t.cd, shift, atol=1e-12)  # ... even broadside (90 deg)
+    assert np.array_equal(low.cl, t.cl)
+
+
+def test_profile_table_lowers_only_the_viscous_part():
+    t = get_table("dickinson1999_profile")
+    d = dickinson1999()
+    cd0, v0 = 0.05, _dickinson_fit(0.0)[1]  # CL(0) = 0 after the taper: v(0) = CD(0)
+    assert t.at(0.0)[1] == pytest.approx(cd0, abs=1e-12)
+    # at 20 deg (away from the 10-deg end tapers): pressure part CL tan a kept, viscous part
+    # CD - CL tan a scaled by cd0 / v(0), from the published fit directly
+    cl, cd = _dickinson_fit(20.0)
+    p = cl * np.tan(np.deg2rad(20.0))
+    assert t.at(20.0)[1] == pytest.approx(p + (cd - p) * cd0 / v0, abs=1e-12)
+    # from 35.5 deg (where the viscous part vanishes) on, it IS Dickinson's table
+    high = AOA_DEG >= 35.5
+    assert np.array_equal(t.cd[high & (AOA_DEG <= 144.5)], d.cd[high & (AOA_DEG <= 144.5)])
+    assert np.array_equal(t.cl, d.cl)
+    # the blend rises with angle up to 45 deg; the only dip is the fit's own shallow minimum
+    # (Dickinson's CD bottoms out near 4.8 deg), 0.7% below the floor at 0.5 deg
+    assert (np.diff(t.cd[1:91]) >= -1e-12).all()  # 0.5..45 deg
+    assert t.cd.min() >= 0.99 * cd0
+    assert 0.03 <= t.cd.min() <= 0.13  # Withers 1981 bird-wing minimum CD range
+
+
+def test_bluff_body_section():
+    t = get_table("bluff_body")
+    assert (t.cl == 0).all()
+    assert t.at(90.0)[1] == pytest.approx(0.3)  # flow square to the section: the full CD
+    assert t.at(0.0)[1] == pytest.approx(0.0)  # flow along it: nothing
+    assert t.at(30.0)[1] == pytest.approx(0.15)  # 0.3 sin 30
