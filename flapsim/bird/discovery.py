@@ -23,9 +23,9 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from flapsim.bird import cycle
+from flapsim.bird.database import ChunkResult
 from flapsim.bird.sampling import (
     RANGE_TOLERANCE,
-    ChunkResult,
     SampleWorker,
     SamplingConfig,
     WingbeatSet,
@@ -128,11 +128,12 @@ class DiscoveryWorker:
         if not config.db:
             raise InputError("phase 2 needs the phase-1 database (--from DB)")
         self.config = config
-        db = load_database(config.db)
-        self.db_header = db.header
-        scfg = config.sampling or db.header.get("config") or {}
+        from flapsim.bird.database import read_header
+
+        scfg = config.sampling or read_header(config.db).get("config") or {}
         self.sampler = SampleWorker(SamplingConfig.from_dict(scfg) if scfg else SamplingConfig())
-        self.sampler.examples  # noqa: B018 (built: pre-states and the pre-simulation wingbeat)
+        db = load_database(config.db, model_hash=self.sampler.dove.hash(), require_finalized=True)
+        self.db_header = db.header
         reg = Regressor(db.arrays["dS"], db.arrays["dP"], k=config.k or None, method=config.method)
         self.controller = WingbeatController(self.sampler.flight, reg, self.sampler.P0,
                                              self.sampler.lo, self.sampler.hi)

@@ -26,7 +26,7 @@ leaves a joint range, or whose simulation diverges, are counted and rejected.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import mujoco
@@ -34,6 +34,7 @@ import numpy as np
 
 from flapsim.bird import cycle
 from flapsim.bird.capture import CaptureSet, reference_capture
+from flapsim.bird.database import ChunkResult
 from flapsim.bird.flight import DoveFlight, FlightConfig
 from flapsim.bird.model import N_DOF, Dove
 from flapsim.bird.wingbeat import (
@@ -257,20 +258,6 @@ class SamplingConfig:
                 raise InputError(f"{name} must be a finite non-negative number, got {v}")
         if not (1.0 <= self.cruise_speed <= 20.0):
             raise InputError(f"cruise speed must be 1..20 m/s, got {self.cruise_speed}")
-
-
-@dataclass
-class ChunkResult:
-    """Accepted samples of indices [start, stop) and the rejections."""
-
-    start: int
-    stop: int
-    index: np.ndarray
-    """(m,) accepted sample indices, ascending."""
-    arrays: dict[str, np.ndarray]
-    """Per accepted sample fields (:data:`FIELDS`), first dimension m."""
-    rejected: dict[str, int] = field(default_factory=dict)
-    """Reason -> count."""
 
 
 def collect_chunk(sample, start: int, stop: int) -> ChunkResult:

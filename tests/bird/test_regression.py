@@ -21,12 +21,26 @@ def test_knn_equals_brute_force_on_random_data():
     dP = rng.normal(size=(600, 29))
     w = weight_vector(PAPER_WEIGHTS)
     for k in (1, 3, 50):
-        reg = Regressor(dS, dP, k=k)
+        reg = Regressor(dS, dP, k=k, normalize=False)
         for _ in range(20):
             x = rng.normal(size=8) * 0.5
             # same numbers up to round-off of the kd-tree's distances (1e-12 relative)
             np.testing.assert_allclose(reg.predict(x), brute_force_knn(dS, dP, x, k, w), rtol=1e-9,
                                        atol=1e-12)
+
+
+def test_normalized_weights_are_the_papers_over_each_spread():
+    # normalize=True measures each dimension in units of its spread in the database:
+    # the same as brute force with W_i = w_i / std_i^2
+    rng = np.random.default_rng(8)
+    dS = rng.normal(size=(500, 8)) * np.array([0.1, 0.2, 0.5, 1.0, 0.5, 2.0, 3.0, 4.0])
+    dP = rng.normal(size=(500, 29))
+    w = weight_vector(PAPER_WEIGHTS) / dS.std(axis=0) ** 2
+    reg = Regressor(dS, dP, k=20, normalize=True)
+    for _ in range(10):
+        x = rng.normal(size=8)
+        np.testing.assert_allclose(reg.predict(x), brute_force_knn(dS, dP, x, 20, w), rtol=1e-9,
+                                   atol=1e-12)
 
 
 def test_weights_are_the_papers_and_matter():
@@ -37,7 +51,7 @@ def test_weights_are_the_papers_and_matter():
     dS[0, 0] = 1.0
     dS[1, 5] = 0.8
     dP = np.eye(2, 29)
-    reg = Regressor(dS, dP, k=1)
+    reg = Regressor(dS, dP, k=1, normalize=False)
     np.testing.assert_array_equal(reg.predict(np.zeros(8)), dP[0])
 
 
@@ -61,7 +75,7 @@ def test_lwlr_recovers_a_linear_map_exactly():
     A = rng.normal(size=(8, 29))
     dS = rng.normal(size=(400, 8))
     dP = dS @ A + 0.5
-    reg = Regressor(dS, dP, k=60, method="lwlr", ridge=1e-9)
+    reg = Regressor(dS, dP, k=60, method="lwlr", ridge=1e-9, normalize=False)
     x = rng.normal(size=8) * 0.3
     np.testing.assert_allclose(reg.predict(x), x @ A + 0.5, atol=1e-5)
 

@@ -8,8 +8,8 @@ from flapsim.bird import cycle
 from flapsim.bird.flight import pitch_roll
 from flapsim.bird.sampling import (
     Ellipses,
-    SamplingConfig,
     SampleWorker,
+    SamplingConfig,
     WingbeatSet,
     in_ranges,
     pose_quat,
