@@ -193,7 +193,10 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
     from flapsim.bird.flight import pitch_roll
 
     p, r = pitch_roll(R)
-    if S_now is not None:
+    if S_now is not None and settle_s <= 0:
+        # no demand on the angular velocity: whatever the reference wingbeat would give
+        w_body = S_now[5:8].copy()
+    elif S_now is not None:
         # d(pitch)/dt = -w_y and d(roll)/dt = -w_x * ROLL_SIGN (body axes x fwd, y left, z up)
         w_body[1] -= (p - S_now[0]) / settle_s
         w_body[0] -= ROLL_RATE_SIGN * (r - S_now[1]) / settle_s
@@ -340,6 +343,9 @@ class WingbeatController:
     P0: np.ndarray = field(default_factory=lambda: with_tail_bias(p0(), FlightConfig.tail_bias_deg))
     lo: np.ndarray | None = None
     hi: np.ndarray | None = None
+    dS_limit: np.ndarray | None = None
+    """(8,) largest |dS| asked per dimension (``None``: no limit). A request beyond what one
+    wingbeat can do drags a local regression away from the samples that matter."""
 
     def __post_init__(self) -> None:
         if self.regressor.dP.shape[1] != N_PARAMS:
@@ -359,6 +365,8 @@ class WingbeatController:
         e0 = cycle.fly_cycle(fl, snap, self.P0, self.ref)
         S_t = np.asarray(target(e0), float)
         dS = S_t - e0.S
+        if self.dS_limit is not None:
+            dS = np.clip(dS, -self.dS_limit, self.dS_limit)
         P = self.P0 + self.regressor.predict(dS)
         Pp = project_to_ranges(self.ref, P, self.lo, self.hi)
         projected = bool(np.max(np.abs(Pp - P)) > 1e-12)

@@ -35,6 +35,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the database file to create, or to resume if it exists")
     p.add_argument("--from", dest="from_db", default=None, metavar="DB",
                    help="phase 2 only: the phase-1 database to start from")
+    p.add_argument("--discovery", type=int, default=None, metavar="M",
+                   help="phase 2: steering tasks the phase-1 controller flies first (default 2 x "
+                        "--samples; written to OUT.discovery.db, resumable too)")
+    p.add_argument("--extrapolate", type=float, default=0.25,
+                   help="phase 2: share of samples drawn along the discovered control manifold "
+                        "beyond its steering/elevation extremes (default 0.25; 0 = none)")
+    p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
+                   help="phase 2: regression of the phase-1 controller that discovers (default lwlr)")
+    p.add_argument("--alpha-max-deg", type=float, default=30.0,
+                   help="phase 2: steering asked within +-this per wingbeat (default 30)")
+    p.add_argument("--beta-max-deg", type=float, default=15.0,
+                   help="phase 2: elevation asked within +-this per wingbeat (default 15)")
+    p.add_argument("--pre-pitch-deg", type=float, default=None,
+                   help="phase 1: pre-state pitch within +-this (default 45, the paper's)")
+    p.add_argument("--pre-roll-deg", type=float, default=None,
+                   help="phase 1: pre-state roll within +-this (default 45, the paper's)")
     p.add_argument("--chunk-size", type=int, default=None, metavar="C",
                    help="samples per work unit (default 16, or the resumed file's)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -78,6 +94,15 @@ def validate(args: argparse.Namespace) -> None:
             raise InputError("--json and --out name the same file")
     if args.phase == 1 and args.from_db is not None:
         raise InputError("--from is only for --phase 2")
+    if args.discovery is not None and not (1 <= args.discovery <= 10**9):
+        raise InputError(f"--discovery must be 1..1e9, got {args.discovery}")
+    if not (math.isfinite(args.extrapolate) and 0 <= args.extrapolate <= 1):
+        raise InputError(f"--extrapolate must be a share 0..1, got {args.extrapolate}")
+    for flag, v, hi in (("--alpha-max-deg", args.alpha_max_deg, 90), ("--beta-max-deg",
+                        args.beta_max_deg, 60), ("--pre-pitch-deg", args.pre_pitch_deg, 80),
+                        ("--pre-roll-deg", args.pre_roll_deg, 80)):
+        if v is not None and not (math.isfinite(v) and 0 <= v <= hi):
+            raise InputError(f"{flag} must be 0..{hi}, got {v}")
     if args.phase == 2:
         if args.from_db is None:
             raise InputError("--phase 2 needs --from DB (a phase-1 database)")
@@ -100,21 +125,61 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
     kwargs: dict[str, Any] = {"seed": args.seed}
     if args.sigma is not None:
         kwargs["sigma"] = args.sigma
+    if getattr(args, "pre_pitch_deg", None) is not None:
+        kwargs["pitch_deg"] = args.pre_pitch_deg
+    if getattr(args, "pre_roll_deg", None) is not None:
+        kwargs["roll_deg"] = args.pre_roll_deg
     return SamplingConfig(**kwargs), SampleWorker
 
 
+def discovery_path(out: str | Path) -> Path:
+    """Where phase 2 keeps its discovered samples: next to ``--out``."""
+    out = Path(out)
+    return out.with_name(out.name + ".discovery.db")
+
+
+#: Phase 2's ellipse scale: the discovered wingbeats already spread along the control
+#: manifold, so the lower end of the paper's 2..4 keeps the new samples on it.
+PHASE2_SIGMA = 2.0
+
+
 def run_phase2(args: argparse.Namespace) -> tuple[Any, type]:
-    """The phase-2 sampler, from the phase-1 database ``args.from_db``: (config,
-    worker class). Hook for phase 2."""
-    raise InputError("phase 2 is not built yet")
+    """Phase 2 (the paper's sec. 5.2): the phase-1 controller flies ``--discovery`` random
+    steering tasks into ``OUT.discovery.db`` (step 1, trained and resumable like any
+    database); returns the resampling step's (config, worker class): phase-1 sampling
+    around the discovered wingbeats, with ``--extrapolate`` of the samples along the
+    discovered manifold beyond its extremes."""
+    from flapsim.bird.database import read_header
+    from flapsim.bird.discovery import DiscoveryConfig, DiscoveryWorker
+    from flapsim.bird.sampling import SampleWorker, SamplingConfig
+
+    src = Path(args.from_db).resolve()
+    base = read_header(src).get("config") or {}
+    disc_out = discovery_path(args.out)
+    n_disc = args.discovery or 2 * args.samples
+    dcfg = DiscoveryConfig(seed=args.seed, db=str(src), method=args.method,
+                           alpha_max_deg=args.alpha_max_deg, beta_max_deg=args.beta_max_deg)
+    print(f"phase 2, step 1: {n_disc} steering tasks with the controller of {src.name} "
+          f"-> {disc_out}")
+    step1 = train_from_args(args, dcfg, DiscoveryWorker, kind="dove-discovery", out=disc_out,
+                            n_samples=n_disc)
+    args._phase2_discovery = step1
+    cfg = SamplingConfig.from_dict({**base, "seed": args.seed,
+                                    "sigma": args.sigma if args.sigma is not None else PHASE2_SIGMA,
+                                    "source": str(disc_out.resolve()),
+                                    "extrapolate": args.extrapolate})
+    print(f"phase 2, step 2: {args.samples} samples around the discovered wingbeats -> {args.out}")
+    return cfg, SampleWorker
 
 
-def train_from_args(args: argparse.Namespace, config: Any, worker_cls: type, kind: str) -> dict:
+def train_from_args(args: argparse.Namespace, config: Any, worker_cls: type, kind: str,
+                    out: str | Path | None = None, n_samples: int | None = None) -> dict:
     """Run :func:`flapsim.bird.training.train` for parsed arguments and print the summary."""
     from flapsim.bird.training import train
 
     workers = args.workers or os.cpu_count() or 1
-    s = train(config, args.out, args.samples, worker_cls, workers=workers, backend=args.backend,
+    s = train(config, out or args.out, n_samples or args.samples, worker_cls, workers=workers,
+              backend=args.backend,
               address=args.address, chunk_size=args.chunk_size,
               progress=not getattr(args, "no_progress", False), kind=kind)
     rej = ", ".join(f"{k} {v}" for k, v in s["rejected"].items()) or "none"
@@ -137,4 +202,7 @@ def run(args: argparse.Namespace) -> dict:
         config, worker_cls = phase1(args)
     else:
         config, worker_cls = run_phase2(args)
-    return train_from_args(args, config, worker_cls, kind=f"dove-phase{args.phase}")
+    result = train_from_args(args, config, worker_cls, kind=f"dove-phase{args.phase}")
+    if args.phase == 2:
+        result["discovery"] = args._phase2_discovery
+    return result

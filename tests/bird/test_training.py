@@ -253,11 +253,13 @@ def test_cli_bad_arguments(capsys, tmp_path, args, fragment):
     assert not (tmp_path / "a.db").exists()
 
 
-def test_cli_phase2_hook(capsys, tmp_path):
+def test_cli_phase2_refuses_a_bad_phase1_file(capsys, tmp_path):
     (tmp_path / "p1.db").write_bytes(b"")
     code, err = _cli(capsys, "--samples", "5", "--phase", "2", "--from", str(tmp_path / "p1.db"),
                      "--out", str(tmp_path / "p2.db"))
-    assert code == 2 and "phase 2 is not built yet" in err and "\n" not in err
+    assert code == 2 and "p1.db" in err and "\n" not in err, err
+    assert not (tmp_path / "p2.db").exists()
+    assert not (tmp_path / "p2.db.discovery.db").exists()
 
 
 def test_cli_trains_and_writes_json(capsys, tmp_path, monkeypatch, reference):

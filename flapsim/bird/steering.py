@@ -1,0 +1,126 @@
+"""One-wingbeat steering: how well a controller reaches a commanded state change.
+
+Two measurements the training issue asks for:
+
+* :func:`steering_table`: from random start states (drawn as in phase 1: a random pre-state
+  and a random pre-simulation wingbeat), the controller is asked to steer by alpha and
+  climb by beta in one wingbeat (:class:`~flapsim.bird.controller.SteerTarget`); the error
+  between the state it reaches and the target state is compared with the base
+  controller's (P0 from the same state).
+* :func:`steering_range`: from steady cruise, the largest heading change per wingbeat the
+  controller achieves to either side when asked for more than it can do (the paper's
+  "steering range per wingbeat": -8.0..8.9 deg after phase 1, -38.2..29.2 after phase 2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flapsim.bird import cycle
+from flapsim.bird.controller import (
+    PAPER_WEIGHTS,
+    SteerTarget,
+    Trim,
+    WingbeatController,
+    start_cruise,
+    weight_vector,
+)
+from flapsim.bird.sampling import SampleWorker
+from flapsim.errors import SimulationError
+
+
+def state_error(S: np.ndarray, S_target: np.ndarray) -> float:
+    """sqrt((S - S_t) W (S - S_t)^T) with the paper's W (eq. 3) in SI units."""
+    d = np.asarray(S) - np.asarray(S_target)
+    return float(np.sqrt(d @ (weight_vector(PAPER_WEIGHTS) * d)))
+
+
+@dataclass
+class SteeringRow:
+    """One command over all start states."""
+
+    alpha_deg: float
+    beta_deg: float
+    error_controller: float
+    """Mean state error of the controller's wingbeat (weighted, see :func:`state_error`)."""
+    error_base: float
+    """Mean state error of P0 from the same states."""
+    achieved_alpha_deg: float
+    """Mean achieved steering (heading change of the centre-of-mass velocity vs P0), deg."""
+    achieved_beta_deg: float
+    """Mean achieved elevation change vs P0, deg."""
+    better: float
+    """Share of start states where the controller's error is below the base's."""
+    n: int
+    """Start states that did not diverge."""
+
+
+def steering_table(controller: WingbeatController, sampler: SampleWorker, trim: Trim,
+                   commands_deg: list[tuple[float, float]], n_states: int = 20,
+                   seed: int = 0) -> list[SteeringRow]:
+    """Controller vs base on one-wingbeat commands from ``n_states`` random states."""
+    fl = controller.flight
+    starts = []
+    for i in range(n_states):
+        rng = np.random.default_rng([seed, i])
+        pre = sampler.pre_state(rng)
+        dP = sampler.draw_wingbeat(rng)
+        if dP is None:
+            continue
+        try:
+            starts.append(cycle.fly_cycle(fl, pre, sampler.P0 + dP, sampler.ref).snapshot)
+        except SimulationError:
+            continue
+    rows = []
+    for a_deg, b_deg in commands_deg:
+        ec, eb, aa, bb, win = [], [], [], [], []
+        for snap in starts:
+            target = SteerTarget(trim, np.radians(a_deg), np.radians(b_deg))
+            try:
+                step = controller.choose(target, snap)
+            except SimulationError:
+                continue
+            e_c = state_error(step.end.S, step.S_target)
+            e_b = state_error(step.reference.S, step.S_target)
+            h0, c0 = cycle.heading_and_climb(step.reference.com_vel)
+            h1, c1 = cycle.heading_and_climb(step.end.com_vel)
+            ec.append(e_c)
+            eb.append(e_b)
+            aa.append(np.degrees(cycle.wrap(h1 - h0)))
+            bb.append(np.degrees(c1 - c0))
+            win.append(e_c < e_b)
+        rows.append(SteeringRow(a_deg, b_deg, float(np.mean(ec)), float(np.mean(eb)),
+                                float(np.mean(aa)), float(np.mean(bb)), float(np.mean(win)),
+                                len(ec)))
+    return rows
+
+
+def steering_range(controller: WingbeatController, trim: Trim, ask_deg: float = 45.0,
+                   settle_wingbeats: int = 3, steps: int = 7) -> tuple[float, float]:
+    """(most right, most left) heading change per wingbeat, deg, that the controller makes
+    from steady cruise when asked for alpha in [-ask_deg, ask_deg] (``steps`` values)."""
+    fl = controller.flight
+    start_cruise(fl, controller.P0)
+    for _ in range(settle_wingbeats):
+        cycle.fly_cycle(fl, None, controller.P0)
+    snap = cycle.snapshot(fl)
+    h_start, _ = cycle.heading_and_climb(_com_vel(fl, snap))
+    got = []
+    for a in np.linspace(-ask_deg, ask_deg, steps):
+        try:
+            step = controller.choose(SteerTarget(trim, np.radians(a), 0.0), snap)
+        except SimulationError:
+            continue
+        h1, _ = cycle.heading_and_climb(step.end.com_vel)
+        got.append(float(np.degrees(cycle.wrap(h1 - h_start))))
+    return (min(got), max(got)) if got else (float("nan"), float("nan"))
+
+
+def _com_vel(fl, snap: cycle.Snapshot) -> np.ndarray:
+    import mujoco
+
+    cycle.restore(fl, snap)
+    mujoco.mj_subtreeVel(fl.model, fl.data)
+    return fl.data.subtree_linvel[fl.dove.trunk].copy()
