@@ -19,6 +19,7 @@ import platform
 import time
 
 import mujoco
+import numpy as np
 
 from flapsim.bird.flight import FlightConfig, fly
 from flapsim.bird.model import Dove
@@ -65,4 +66,106 @@ def run(args: argparse.Namespace) -> dict:
         print(f"  {name:12s} {r['real_time_factor']:6.1f}x real time ({r['us_per_step']:.1f} us/step)")
     print(f"  flight step costs {out['cost_over_bare_step']:.2f}x a bare mj_step (paper: 0.3-0.5x "
           "real time)")
+    return out
+
+
+def run_train(args: argparse.Namespace) -> dict:
+    """``flapsim bench train``: phase-1 samples per second on W worker processes, against
+    the same sampler in this process (parallel efficiency) and against bare ``mj_step``
+    (what a sample costs in steps of the bare model)."""
+    import os
+    import tempfile
+
+    from flapsim.bird.sampling import SampleWorker, SamplingConfig
+    from flapsim.bird.training import train
+
+    workers = getattr(args, "workers", None) or min(2, os.cpu_count() or 1)
+    n = getattr(args, "samples", None) or 48 * workers
+    w = SampleWorker(SamplingConfig(seed=12345))
+    w.run_chunk(0, 1)  # warm-up (numba kernels)
+    t0 = time.perf_counter()
+    one = w.run_chunk(1, 9)
+    per_sample = (time.perf_counter() - t0) / 8
+    cycles = 3 * len(one.index) + sum(one.rejected.values())  # pre-simulation, P0, P0 + dP
+    m = w.dove.model
+    steps_per_cycle = w.ref.duration(w.P0) / float(m.opt.timestep)
+    d = mujoco.MjData(m)
+    nstep = int(steps_per_cycle * 3)
+    t0 = time.perf_counter()
+    mujoco.mj_step(m, d, nstep=nstep)
+    bare_per_sample = time.perf_counter() - t0
+    w.close()
+    with tempfile.TemporaryDirectory() as tmp:
+        s = train(SamplingConfig(seed=12345), os.path.join(tmp, "bench.db"), n, SampleWorker,
+                  workers=workers, chunk_size=8, progress=False, kind="dove-phase1")
+    rate = s["samples_per_s"]
+    out = {
+        "target": "train",
+        "workers": workers,
+        "samples": s["samples"],
+        "samples_per_s": rate,
+        "wall_s": s["wall_s"],
+        "startup_s": s["startup_s"],
+        "in_process_samples_per_s": 1.0 / per_sample,
+        "parallel_efficiency": rate / (workers / per_sample),
+        "cost_over_bare_steps": per_sample / bare_per_sample,
+        "cycles_per_sample": cycles / 8,
+        "minutes_for_10000": 10000 / rate / 60,
+    }
+    print(f"phase-1 sampling on {workers} worker process{'es' if workers > 1 else ''}: "
+          f"{rate:.1f} samples/s ({s['samples']} samples, start-up {s['startup_s']:.1f} s)")
+    print(f"  in this process {out['in_process_samples_per_s']:.1f} samples/s: parallel efficiency "
+          f"{out['parallel_efficiency']:.2f}")
+    print(f"  a sample costs {out['cost_over_bare_steps']:.2f}x its {3 * steps_per_cycle:.0f} bare "
+          "mj_steps (3 wingbeats: pre-simulation, P0, P0 + dP)")
+    print(f"  10,000 samples: {out['minutes_for_10000']:.1f} min (paper: hours)")
+    return out
+
+
+def run_controller(args: argparse.Namespace) -> dict:
+    """``flapsim bench controller``: the learned controller's cruise in real-time factor, and
+    what a controlled wingbeat costs against a base wingbeat (the P0 prediction, the
+    regression and the flown wingbeat) in the same run."""
+    from flapsim.bird.controller import (
+        BaseController,
+        CruiseTarget,
+        fly_controlled,
+        load_controller,
+        start_cruise,
+        trim_of_base_flight,
+    )
+    from flapsim.bird.flight import DoveFlight
+
+    n = max(4, int(getattr(args, "wingbeats", None) or 20))
+    dove = Dove.load()
+    fl = DoveFlight(dove)
+    try:
+        ctl = load_controller(fl, getattr(args, "db", None))
+        trim = trim_of_base_flight(fl, ctl.P0)
+        res = {}
+        for name, c in (("learned", ctl), ("base", BaseController(fl, ctl.P0))):
+            start_cruise(fl, ctl.P0)
+            f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
+            res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
+                         "real_time_factor": f.simulated_s / f.wall_time}
+        x = np.zeros(8)
+        t0 = time.perf_counter()
+        for _ in range(200):
+            ctl.regressor.predict(x)
+        query_ms = (time.perf_counter() - t0) / 200 * 1e3
+    finally:
+        fl.close()
+    out = {
+        "target": "controller",
+        "database_samples": ctl.regressor.n,
+        "method": ctl.regressor.method,
+        "k": ctl.regressor.k,
+        "real_time_factor": res["learned"]["real_time_factor"],
+        "cost_over_base": res["base"]["real_time_factor"] / res["learned"]["real_time_factor"],
+        "regression_ms": query_ms,
+        "measurements": res,
+    }
+    print(f"learned controller ({out['method']}, k={out['k']}, {out['database_samples']} samples): "
+          f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
+          f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
     return out

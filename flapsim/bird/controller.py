@@ -305,13 +305,39 @@ class SteerTarget:
     alpha: float
     beta: float
     settle_s: float = 0.2
+    max_bank_deg: float = 60.0
+    """Largest bank asked (a coordinated turn at alpha per wingbeat would ask
+    atan(v alpha / (T g)): 74 deg for 30 deg per wingbeat)."""
 
     def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
         h, c = cycle.heading_and_climb(e0.com_vel)
         speed = float(np.linalg.norm(e0.com_vel))
-        rate = self.alpha / e0.duration
+        max_rate = GRAVITY * np.tan(np.radians(self.max_bank_deg)) / max(speed, 1e-3)
+        rate = float(np.clip(self.alpha / e0.duration, -max_rate, max_rate))
         return target_state(self.trim, speed, h + self.alpha, c + self.beta, rate, e0.S,
                             self.settle_s)
+
+
+@dataclass
+class PathTurnTarget:
+    """Turn the flight path by ``alpha`` (left +) and ``beta`` (up +) within one wingbeat,
+    relative to where the reference wingbeat takes it, keeping the reference's attitude
+    and rates: S0 with its body-frame velocity rotated by alpha about the body's z axis
+    and beta about its y axis. Unlike :class:`SteerTarget` (a coordinated turn, which
+    S can only express as bank and yaw rate because it is heading invariant) this asks
+    for the change of flight direction itself, in the frame S is measured in."""
+
+    alpha: float
+    beta: float
+
+    def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
+        v = e0.S[2:5]
+        ca, sa, cb, sb = np.cos(self.alpha), np.sin(self.alpha), np.cos(self.beta), np.sin(self.beta)
+        Rz = np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]])
+        Ry = np.array([[cb, 0.0, -sb], [0.0, 1.0, 0.0], [sb, 0.0, cb]])  # +beta tips +x up
+        S = e0.S.copy()
+        S[2:5] = Rz @ Ry @ v
+        return S
 
 
 # -- the controller -------------------------------------------------------------------------

@@ -21,6 +21,7 @@ import numpy as np
 from flapsim.bird import cycle
 from flapsim.bird.controller import (
     PAPER_WEIGHTS,
+    PathTurnTarget,
     SteerTarget,
     Trim,
     WingbeatController,
@@ -53,18 +54,44 @@ class SteeringRow:
     """Mean achieved elevation change vs P0, deg."""
     better: float
     """Share of start states where the controller's error is below the base's."""
+    error_controller_db: float
+    """Mean state error in the regression's own metric (the paper's weights over each
+    dimension's spread in the database)."""
+    error_base_db: float
+    """... of P0."""
     n: int
     """Start states that did not diverge."""
 
 
 def steering_table(controller: WingbeatController, sampler: SampleWorker, trim: Trim,
                    commands_deg: list[tuple[float, float]], n_states: int = 20,
-                   seed: int = 0) -> list[SteeringRow]:
-    """Controller vs base on one-wingbeat commands from ``n_states`` random states."""
+                   seed: int = 0, target: str = "turn", start: str = "cruise"
+                   ) -> list[SteeringRow]:
+    """Controller vs base on one-wingbeat commands from ``n_states`` start states;
+    ``target``: ``turn`` (:class:`SteerTarget`, a coordinated turn) or ``path``
+    (:class:`PathTurnTarget`); ``start``: ``cruise`` (steady flight tilted by up to 5 deg in
+    pitch and roll, two base wingbeats) or ``random`` (phase-1 pre-states and wingbeats)."""
     fl = controller.flight
     starts = []
     for i in range(n_states):
         rng = np.random.default_rng([seed, i])
+        if start == "cruise":
+            # near steady flight: the cruise start tilted by up to 5 deg, two base wingbeats
+            start_cruise(fl, controller.P0, roll_deg=float(rng.uniform(-5, 5)))
+            d = fl.data
+            import mujoco
+
+            q = d.qpos[3:7].copy()
+            th = np.radians(rng.uniform(-5, 5))
+            mujoco.mju_mulQuat(d.qpos[3:7], q, np.array([np.cos(-th / 2), 0, np.sin(-th / 2), 0]))
+            mujoco.mj_forward(fl.model, d)
+            try:
+                for _ in range(2):
+                    cycle.fly_cycle(fl, None, controller.P0)
+            except SimulationError:
+                continue
+            starts.append(cycle.snapshot(fl))
+            continue
         pre = sampler.pre_state(rng)
         dP = sampler.draw_wingbeat(rng)
         if dP is None:
@@ -75,17 +102,23 @@ def steering_table(controller: WingbeatController, sampler: SampleWorker, trim: 
             continue
     rows = []
     for a_deg, b_deg in commands_deg:
-        ec, eb, aa, bb, win = [], [], [], [], []
+        ec, eb, aa, bb, win, ecn, ebn = [], [], [], [], [], [], []
+        wdb = controller.regressor.w
         for snap in starts:
-            target = SteerTarget(trim, np.radians(a_deg), np.radians(b_deg))
+            if target == "path":
+                tgt = PathTurnTarget(np.radians(a_deg), np.radians(b_deg))
+            else:
+                tgt = SteerTarget(trim, np.radians(a_deg), np.radians(b_deg))
             try:
-                step = controller.choose(target, snap)
+                step = controller.choose(tgt, snap)
             except SimulationError:
                 continue
             e_c = state_error(step.end.S, step.S_target)
             e_b = state_error(step.reference.S, step.S_target)
             h0, c0 = cycle.heading_and_climb(step.reference.com_vel)
             h1, c1 = cycle.heading_and_climb(step.end.com_vel)
+            ecn.append(float(np.sqrt(np.sum(wdb * (step.end.S - step.S_target) ** 2))))
+            ebn.append(float(np.sqrt(np.sum(wdb * (step.reference.S - step.S_target) ** 2))))
             ec.append(e_c)
             eb.append(e_b)
             aa.append(np.degrees(cycle.wrap(h1 - h0)))
@@ -93,29 +126,41 @@ def steering_table(controller: WingbeatController, sampler: SampleWorker, trim: 
             win.append(e_c < e_b)
         rows.append(SteeringRow(a_deg, b_deg, float(np.mean(ec)), float(np.mean(eb)),
                                 float(np.mean(aa)), float(np.mean(bb)), float(np.mean(win)),
-                                len(ec)))
+                                float(np.mean(ecn)), float(np.mean(ebn)), len(ec)))
     return rows
 
 
-def steering_range(controller: WingbeatController, trim: Trim, ask_deg: float = 45.0,
-                   settle_wingbeats: int = 3, steps: int = 7) -> tuple[float, float]:
-    """(most right, most left) heading change per wingbeat, deg, that the controller makes
-    from steady cruise when asked for alpha in [-ask_deg, ask_deg] (``steps`` values)."""
+def steering_range(controller: WingbeatController, trim: Trim, ask_deg: float = 30.0,
+                   wingbeats: int = 12, settle_wingbeats: int = 3) -> dict:
+    """Sustained steering from steady cruise: the controller is asked to steer by
+    +-``ask_deg`` every wingbeat (:class:`SteerTarget`) for ``wingbeats`` wingbeats, as in
+    the paper's rapid side-to-side turns; returns the largest heading change per wingbeat
+    it achieved to each side (deg, right negative) and whether it stayed in control
+    (|roll| < 80 deg, no divergence)."""
     fl = controller.flight
-    start_cruise(fl, controller.P0)
-    for _ in range(settle_wingbeats):
-        cycle.fly_cycle(fl, None, controller.P0)
-    snap = cycle.snapshot(fl)
-    h_start, _ = cycle.heading_and_climb(_com_vel(fl, snap))
-    got = []
-    for a in np.linspace(-ask_deg, ask_deg, steps):
-        try:
-            step = controller.choose(SteerTarget(trim, np.radians(a), 0.0), snap)
-        except SimulationError:
-            continue
-        h1, _ = cycle.heading_and_climb(step.end.com_vel)
-        got.append(float(np.degrees(cycle.wrap(h1 - h_start))))
-    return (min(got), max(got)) if got else (float("nan"), float("nan"))
+    out = {}
+    for side, a in (("right", -ask_deg), ("left", ask_deg)):
+        start_cruise(fl, controller.P0)
+        for _ in range(settle_wingbeats):
+            cycle.fly_cycle(fl, None, controller.P0)
+        h_prev, _ = cycle.heading_and_climb(_com_vel(fl, cycle.snapshot(fl)))
+        per_wb, ok = [], True
+        for _ in range(wingbeats):
+            try:
+                step = controller.choose(SteerTarget(trim, np.radians(a), 0.0))
+            except SimulationError:
+                ok = False
+                break
+            h, _ = cycle.heading_and_climb(step.end.com_vel)
+            per_wb.append(float(np.degrees(cycle.wrap(h - h_prev))))
+            h_prev = h
+            if abs(step.end.S[1]) > np.radians(80):
+                ok = False
+                break
+        best = (min(per_wb) if a < 0 else max(per_wb)) if per_wb else float("nan")
+        out[side] = {"best_deg_per_wingbeat": best, "per_wingbeat_deg": per_wb, "in_control": ok}
+    out["range_deg"] = [out["right"]["best_deg_per_wingbeat"], out["left"]["best_deg_per_wingbeat"]]
+    return out
 
 
 def _com_vel(fl, snap: cycle.Snapshot) -> np.ndarray:

@@ -16,6 +16,8 @@ BENCHES: dict[str, str] = {
     "creatures": "flapsim.modal.bench:run_creatures",
     "swimmer": "flapsim.swim.bench:run",
     "dove": "flapsim.bird.bench:run",
+    "train": "flapsim.bird.bench:run_train",
+    "controller": "flapsim.bird.bench:run_controller",
 }
 
 
@@ -29,9 +31,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="comma-separated polygon counts for 'forces' (default 50,300,1000)",
     )
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes for 'train' (default 2, or fewer CPU cores)")
+    p.add_argument("--samples", type=int, default=None,
+                   help="samples for 'train' (default 48 per worker)")
+    p.add_argument("--wingbeats", type=int, default=None,
+                   help="wingbeats for 'controller' (default 20)")
+    p.add_argument("--db", default=None, help="database for 'controller' (default: the bundled one)")
 
 
 def run(args: argparse.Namespace) -> dict:
+    for flag in ("workers", "samples", "wingbeats"):
+        v = getattr(args, flag, None)
+        if v is not None and not (1 <= v <= 100000):
+            raise InputError(f"--{flag} must be 1..100000, got {v}")
     if args.target not in BENCHES:
         raise InputError(f"unknown benchmark {args.target!r}; choose one of {', '.join(BENCHES)}")
     module_name, func = BENCHES[args.target].split(":")
