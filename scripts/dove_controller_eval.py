@@ -41,8 +41,9 @@ def main() -> None:
     ap.add_argument("--k", type=int, default=None)
     ap.add_argument("--states", type=int, default=20)
     ap.add_argument("--wingbeats", type=int, default=100)
-    ap.add_argument("--target", default="turn", choices=("path", "turn"),
-                    help="one-wingbeat command: a coordinated turn (default) or turn the flight path")
+    ap.add_argument("--target", default="turn", choices=("path", "turn", "signature"),
+                    help="one-wingbeat command: a coordinated turn (default), turn the flight path, "
+                         "or the database's steering signature S0 + D (alpha, beta)")
     ap.add_argument("--start", default="cruise", choices=("cruise", "random"),
                     help="one-wingbeat start states: near cruise (default) or phase-1 random")
     ap.add_argument("--skip", default="", help="comma list of parts to skip: cruise,table,range")
@@ -70,8 +71,13 @@ def main() -> None:
         sampler = SampleWorker(SamplingConfig.from_dict({**cfg, "source": "capture",
                                                          "extrapolate": 0.0}))
         cmds = [(al, be) for al in (-8.0, 0.0, 8.0) for be in (-5.0, 0.0, 5.0)]
+        from flapsim.bird.controller import fit_steering_signature
+        from flapsim.bird.database import load_database
+
+        arr = load_database(a.db).arrays
+        D = fit_steering_signature(arr["dS"], arr["alpha"], arr["beta"])
         rows = steering_table(ctl, sampler, trim, cmds, n_states=a.states, target=a.target,
-                              start=a.start)
+                              start=a.start, signature=D)
         sampler.close()
         out["steering_table"] = [r.__dict__ for r in rows]
         print("| alpha deg | beta deg | error controller | error base | better | error (db metric) "

@@ -182,11 +182,13 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
     import mujoco
 
     bank = float(np.arctan2(speed * turn_rate, GRAVITY))
-    pitch = climb + trim.aoa
-    q = pose_quat(pitch, bank_to_roll(bank), heading)
-    R = np.zeros(9)
-    mujoco.mju_quat2Mat(R, q)
-    R = R.reshape(3, 3)
+    # wind axes first (heading, climb, then the bank about the flight path), then the body's
+    # angle of attack about its own y axis: the bank turns about the velocity, so the
+    # body-frame velocity has no sideslip
+    # (left wing down by ``bank`` is a rotation about the forward axis by -bank: y left)
+    R = (_rot_z(heading) @ _rot_y(-climb) @ _rot_x(-bank)
+         @ _rot_y(-trim.aoa))
+    del mujoco
     v = speed * np.array([np.cos(climb) * np.cos(heading), np.cos(climb) * np.sin(heading),
                           np.sin(climb)])
     w_body = trim.S[5:8] + R.T @ np.array([0.0, 0.0, turn_rate])
@@ -201,6 +203,21 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
         w_body[1] -= (p - S_now[0]) / settle_s
         w_body[0] -= ROLL_RATE_SIGN * (r - S_now[1]) / settle_s
     return np.array([p, r, *(R.T @ v), *w_body])
+
+
+def _rot_x(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rot_y(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _roll_rate_sign() -> float:
@@ -316,6 +333,30 @@ class SteerTarget:
         rate = float(np.clip(self.alpha / e0.duration, -max_rate, max_rate))
         return target_state(self.trim, speed, h + self.alpha, c + self.beta, rate, e0.S,
                             self.settle_s)
+
+
+def fit_steering_signature(dS: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """(8, 2) matrix D with dS ~ D (alpha, beta): the state change that comes with steering
+    alpha and elevation beta in a database (least squares through the origin, since the
+    reference wingbeat itself is dS = 0 at alpha = beta = 0)."""
+    A = np.stack([np.asarray(alpha, float), np.asarray(beta, float)], axis=1)
+    D, *_ = np.linalg.lstsq(A, np.asarray(dS, float), rcond=None)
+    return D.T
+
+
+@dataclass
+class SignatureTarget:
+    """Steer by ``alpha`` and climb by ``beta`` in one wingbeat, asked in the state space the
+    controller regresses over: S0 + D (alpha, beta), with D the database's steering
+    signature (:func:`fit_steering_signature`). The paper places wingbeats in the alpha-beta
+    plane by angles "computed from dS"; this is the inverse of that map."""
+
+    D: np.ndarray
+    alpha: float
+    beta: float
+
+    def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
+        return e0.S + self.D @ np.array([self.alpha, self.beta])
 
 
 @dataclass
@@ -524,7 +565,7 @@ def bundled_database_path():
     return Path(__file__).resolve().parent / "data" / BUNDLED_DB
 
 
-def load_controller(flight: DoveFlight, db_path=None, method: str = "knn", k: int | None = None,
+def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
                     weights: tuple[float, float, float] = PAPER_WEIGHTS) -> WingbeatController:
     """A controller over a database (default: the bundled one) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error."""

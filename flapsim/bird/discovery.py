@@ -30,6 +30,7 @@ from flapsim.bird.sampling import (
     SamplingConfig,
     WingbeatSet,
     collect_chunk,
+    file_sha256,
 )
 from flapsim.errors import DataFileError, InputError, SimulationError
 
@@ -143,6 +144,7 @@ class DiscoveryWorker:
         h = self.sampler.header()
         h["kind"] = "discovery"
         h["phase1_model_hash"] = self.db_header.get("model_hash")
+        h["phase1_sha256"] = file_sha256(self.config.db)
         return h
 
     def close(self) -> None:

@@ -290,6 +290,17 @@ def load_examples(config: SamplingConfig, ref: ReferenceWingbeat) -> WingbeatSet
     return WingbeatSet(db.arrays["dP"], db.arrays["alpha"], db.arrays["beta"])
 
 
+def file_sha256(path: str | Path) -> str:
+    """Content hash of a file (provenance of databases built from other databases)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 class SampleWorker:
     """Builds the dove once and turns sample indices into samples."""
 
@@ -321,6 +332,8 @@ class SampleWorker:
             "dof_lo": self.lo.tolist(),
             "dof_hi": self.hi.tolist(),
             "examples": int(len(self.examples.dP)),
+            "source_sha256": (file_sha256(self.config.source) if self.config.source != "capture"
+                              else None),
             "bin_counts": self.ellipses.count.tolist(),
         }
 

@@ -22,6 +22,7 @@ from flapsim.bird import cycle
 from flapsim.bird.controller import (
     PAPER_WEIGHTS,
     PathTurnTarget,
+    SignatureTarget,
     SteerTarget,
     Trim,
     WingbeatController,
@@ -65,12 +66,14 @@ class SteeringRow:
 
 def steering_table(controller: WingbeatController, sampler: SampleWorker, trim: Trim,
                    commands_deg: list[tuple[float, float]], n_states: int = 20,
-                   seed: int = 0, target: str = "turn", start: str = "cruise"
-                   ) -> list[SteeringRow]:
-    """Controller vs base on one-wingbeat commands from ``n_states`` start states;
-    ``target``: ``turn`` (:class:`SteerTarget`, a coordinated turn) or ``path``
-    (:class:`PathTurnTarget`); ``start``: ``cruise`` (steady flight tilted by up to 5 deg in
-    pitch and roll, two base wingbeats) or ``random`` (phase-1 pre-states and wingbeats)."""
+                   seed: int = 0, target: str = "turn", start: str = "cruise",
+                   signature: np.ndarray | None = None) -> list[SteeringRow]:
+    """Controller vs base on one-wingbeat commands from ``n_states`` start states.
+
+    ``target``: ``turn`` (:class:`SteerTarget`, a coordinated turn), ``path``
+    (:class:`PathTurnTarget`) or ``signature`` (:class:`SignatureTarget` with
+    ``signature``); ``start``: ``cruise`` (steady flight tilted by up to 5 deg in pitch and
+    roll, two base wingbeats) or ``random`` (phase-1 pre-states and wingbeats)."""
     fl = controller.flight
     starts = []
     for i in range(n_states):
@@ -107,6 +110,8 @@ def steering_table(controller: WingbeatController, sampler: SampleWorker, trim: 
         for snap in starts:
             if target == "path":
                 tgt = PathTurnTarget(np.radians(a_deg), np.radians(b_deg))
+            elif target == "signature":
+                tgt = SignatureTarget(signature, np.radians(a_deg), np.radians(b_deg))
             else:
                 tgt = SteerTarget(trim, np.radians(a_deg), np.radians(b_deg))
             try:

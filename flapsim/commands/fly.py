@@ -19,8 +19,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "controller over a trained database, holding the start altitude, --speed "
                         "and heading")
     p.add_argument("--db", metavar="DB", help="controller database (default: the bundled one)")
-    p.add_argument("--method", choices=("knn", "lwlr"), default="knn",
-                   help="regression of the learned controller (default knn, the paper's)")
+    p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
+                   help="regression of the learned controller: lwlr (default; locally weighted "
+                        "linear regression) or knn (the paper's k-NN average, which does not hold "
+                        "this dove level: see the README)")
     p.add_argument("--k", type=int, default=None,
                    help="neighbours of the regression (default 0.5%% of the database)")
     p.add_argument("--roll-deg", type=float, default=0.0,

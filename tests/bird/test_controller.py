@@ -1,0 +1,125 @@
+"""The learned wingbeat controller in flight, with the bundled database."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from flapsim.bird import cycle
+from flapsim.bird.controller import (
+    BaseController,
+    CruiseTarget,
+    bundled_database_path,
+    cruise_metrics,
+    fly_controlled,
+    load_controller,
+    start_cruise,
+    target_state,
+    trim_of_base_flight,
+)
+from flapsim.bird.database import load_database
+from flapsim.bird.flight import DoveFlight
+from flapsim.bird.model import Dove
+from flapsim.bird.sampling import RANGE_TOLERANCE
+from flapsim.bird.wingbeat import control_table
+from flapsim.errors import DataFileError
+
+
+@pytest.fixture(scope="module")
+def flight():
+    fl = DoveFlight(Dove.load())
+    yield fl
+    fl.close()
+
+
+@pytest.fixture(scope="module")
+def controller(flight):
+    return load_controller(flight, method="lwlr")
+
+
+@pytest.fixture(scope="module")
+def trim(flight, controller):
+    return trim_of_base_flight(flight, controller.P0)
+
+
+def test_bundled_database_is_for_this_model_and_finished():
+    db = load_database(bundled_database_path(), model_hash=Dove.load().hash(),
+                       require_finalized=True)
+    assert db.header["kind"] in ("dove-phase1", "dove-phase2")
+    assert db.n >= 1000 and db.arrays["dP"].shape == (db.n, 29)
+
+
+def test_level_cruise_holds_altitude_speed_heading_from_a_roll_error(flight, controller, trim):
+    # the training issue's acceptance: 100 wingbeats from a 2 deg roll error within 0.5 m of
+    # the start altitude, 0.5 m/s of 7 m/s and 5 deg of the start heading
+    start_cruise(flight, controller.P0, roll_deg=2.0)
+    target = CruiseTarget(trim, altitude=10.0, speed=7.0)
+    f = fly_controlled(controller, target, 100)
+    m = cruise_metrics(f, target)
+    assert m["max_altitude_deviation"] < 0.5, m
+    assert m["max_speed_deviation"] < 0.5, m
+    assert m["max_heading_deviation_deg"] < 5.0, m
+    # the commanded wingbeats stay inside the joint ranges, and the simulated joints too
+    # (MuJoCo's soft limits: within the sampler's tolerance, here none needed at all)
+    assert m["max_range_excess_deg"] <= np.degrees(RANGE_TOLERANCE)
+
+
+def test_the_base_controller_loses_the_same_start(flight, controller, trim):
+    # without the learned controller the roll error grows (spiral divergence) and the bird
+    # leaves the acceptance band: the cruise test above is the controller's doing
+    start_cruise(flight, controller.P0, roll_deg=2.0)
+    target = CruiseTarget(trim, altitude=10.0, speed=7.0)
+    m = cruise_metrics(fly_controlled(BaseController(flight, controller.P0), target, 100), target)
+    assert (m["max_altitude_deviation"] > 0.5 or m["max_heading_deviation_deg"] > 5.0
+            or m["max_speed_deviation"] > 0.5), m
+
+
+def test_controlled_torques_never_exceed_the_limits(flight, controller, trim):
+    # replay three controlled wingbeats step by step and read the actuator forces MuJoCo
+    # applied: forcerange clamps them, so none may exceed its limit
+    m = flight.model
+    assert np.all(m.actuator_forcelimited)
+    start_cruise(flight, controller.P0, roll_deg=2.0)
+    target = CruiseTarget(trim, altitude=10.0)
+    peak = np.zeros(m.nu)
+    for _ in range(3):
+        snap = cycle.snapshot(flight)
+        step = controller.choose(target, snap)
+        cycle.restore(flight, snap)
+        ctrl, _, _ = control_table(flight.ref, step.P, m.opt.timestep, flight.kp, flight.kv)
+        for c in ctrl:
+            flight.data.ctrl[:] = c
+            mujoco.mj_step(m, flight.data)
+            peak = np.maximum(peak, np.abs(flight.data.actuator_force))
+        # the replay is the controller's wingbeat: same end state (bit for bit)
+        np.testing.assert_array_equal(cycle.snapshot(flight).physics[1:], step.end.snapshot.physics[1:])
+    lim = np.max(np.abs(m.actuator_forcerange), axis=1)
+    assert np.all(peak <= lim + 1e-12)
+
+
+def test_target_state_banks_into_a_coordinated_turn(trim):
+    # a left turn at omega with speed v banks the left wing down by atan(v omega / g)
+    # (the paper's eq. 5): pitch_roll's roll (+ right wing down) is -atan(v omega / g)
+    v, w = 7.0, 0.5
+    S = target_state(trim, v, heading=0.3, climb=0.0, turn_rate=w)
+    assert S[1] == pytest.approx(-np.arctan(v * w / 9.81), abs=1e-9)
+    # speed is kept and the body-frame velocity has no sideslip
+    assert np.linalg.norm(S[2:5]) == pytest.approx(v, rel=1e-12)
+    assert S[3] == pytest.approx(0.0, abs=1e-12)
+    # level flight: the trim's pitch and angular velocity
+    S0 = target_state(trim, v, heading=1.0, climb=0.0, turn_rate=0.0)
+    assert S0[0] == pytest.approx(np.arctan2(-trim.S[4], trim.S[2]), abs=1e-9)
+    np.testing.assert_allclose(S0[5:8], trim.S[5:8], atol=1e-12)
+
+
+def test_foreign_and_other_model_databases_are_refused(flight, tmp_path):
+    bad = tmp_path / "x.db"
+    bad.write_text("not a database\n")
+    with pytest.raises(DataFileError):
+        load_controller(flight, bad)
+    from flapsim.bird.database import save_database
+
+    other = tmp_path / "other.db"
+    save_database(other, {"kind": "dove-phase1", "model_hash": "0123456789ab"},
+                  np.arange(3), {"dS": np.zeros((3, 8)), "dP": np.zeros((3, 29))}, {})
+    with pytest.raises(DataFileError, match="model"):
+        load_controller(flight, other)
