@@ -126,11 +126,18 @@ class _LocalPool:
     capacity_per_worker = 2
 
     def __init__(self, worker_cls: type, config: Any, workers: int, address: str | None) -> None:
+        self._before = set(mp.active_children())
         self.pool = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
                                         initializer=_init_process,
                                         initargs=(worker_cls, config, os.getpid()))
         self.futures: set[Future] = set()
         self.done: deque[Future] = deque()
+        # every process the pool ever started (it starts them lazily, and replaces broken
+        # ones): close() must stop all of them, not only those alive at that moment
+        self.procs: dict[int, Any] = {}
+
+    def _track(self) -> None:
+        self.procs.update(getattr(self.pool, "_processes", None) or {})
 
     def header(self) -> dict:
         return self._result(self.pool.submit(_header))
@@ -146,6 +153,7 @@ class _LocalPool:
     def submit(self, start: int, stop: int) -> None:
         try:
             self.futures.add(self.pool.submit(_run_chunk, start, stop))
+            self._track()
         except BrokenProcessPool:
             raise WorkerError("a worker process died (killed, out of memory or crashed); run the "
                               "same command again to resume") from None
@@ -162,7 +170,8 @@ class _LocalPool:
         return self._result(self.done.popleft())
 
     def close(self, abort: bool) -> None:
-        procs = list(getattr(self.pool, "_processes", {}).values())
+        self._track()
+        procs = list(self.procs.values())
         busy = any(not f.done() for f in self.futures)
         if abort or busy:
             for f in self.futures:
@@ -177,6 +186,21 @@ class _LocalPool:
                     p.kill()
                     p.join(5)
         self.pool.shutdown(wait=True, cancel_futures=True)
+        # a process the pool was starting while it shut down is in neither list yet: every
+        # child this process gained since the pool was made is the pool's
+        procs += [p for p in mp.active_children() if p not in self._before and p not in procs]
+        for p in procs:
+            if p.is_alive() and (abort or busy):
+                p.terminate()
+            p.join(10)
+            if p.is_alive():
+                p.kill()
+                p.join(5)
+        # the pool's own manager thread may reap a process concurrently (os.waitpid in two
+        # threads): our join then returns before the exit status is stored; wait for it
+        deadline = time.monotonic() + 10.0
+        while any(p.exitcode is None for p in procs) and time.monotonic() < deadline:
+            time.sleep(0.01)
         self.futures.clear()
 
 
