@@ -158,3 +158,21 @@ def test_a_chunk_holds_samples_and_counts_rejections(worker):
         P = worker.P0 + res.arrays["dP"][i]
         assert in_ranges(worker.ref, P, worker.lo, worker.hi)
         del idx
+
+
+def test_snapshots_carry_the_solver_warm_start(worker):
+    # a wingbeat that presses the elbows into their joint limit keeps a limit constraint
+    # active across the wingbeat boundary: the constraint solver then starts from
+    # qacc_warmstart, so a snapshot without it would not repeat bit for bit
+    from flapsim.bird.model import DOF_NAMES
+
+    fl = worker.flight
+    press = worker.P0.copy()
+    for side in "lr":
+        press[2 * DOF_NAMES.index(f"{side}_elbow_flex") + 1] += 0.8  # past the 110 deg limit
+    snap = cycle.fly_cycle(fl, worker.pre_state(np.random.default_rng(3)), press).snapshot
+    assert fl.data.nefc > 0  # a limit is active at the boundary
+    a = cycle.fly_cycle(fl, snap, press)
+    cycle.fly_cycle(fl, snap, worker.P0)  # leaves another warm start behind
+    b = cycle.fly_cycle(fl, snap, press)
+    np.testing.assert_array_equal(a.snapshot.physics, b.snapshot.physics)
