@@ -176,3 +176,19 @@ def test_snapshots_carry_the_solver_warm_start(worker):
     cycle.fly_cycle(fl, snap, worker.P0)  # leaves another warm start behind
     b = cycle.fly_cycle(fl, snap, press)
     np.testing.assert_array_equal(a.snapshot.physics, b.snapshot.physics)
+
+
+def test_wingbeats_leaving_a_joint_range_are_never_drawn():
+    # with wide ellipses (sigma 8) many draws cross a range: each is refused (None), and
+    # every wingbeat returned keeps its whole commanded trajectory inside every range
+    w = SampleWorker(SamplingConfig(seed=5, sigma=8.0))
+    try:
+        rng = np.random.default_rng(0)
+        draws = [w.draw_wingbeat(rng) for _ in range(300)]
+        kept = [d for d in draws if d is not None]
+        assert 0 < len(kept) < len(draws)
+        for dP in kept:
+            qmin, qmax = trajectory_bounds(w.ref, w.P0 + dP)
+            assert np.all(qmin >= w.lo) and np.all(qmax <= w.hi)
+    finally:
+        w.close()
