@@ -80,7 +80,7 @@ def run_train(args: argparse.Namespace) -> dict:
     from flapsim.bird.training import train
 
     workers = getattr(args, "workers", None) or min(2, os.cpu_count() or 1)
-    n = getattr(args, "samples", None) or 48 * workers
+    n = getattr(args, "samples", None) or 150 * workers
     w = SampleWorker(SamplingConfig(seed=12345))
     w.run_chunk(0, 1)  # warm-up (numba kernels)
     t0 = time.perf_counter()
@@ -98,12 +98,15 @@ def run_train(args: argparse.Namespace) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         s = train(SamplingConfig(seed=12345), os.path.join(tmp, "bench.db"), n, SampleWorker,
                   workers=workers, chunk_size=8, progress=False, kind="dove-phase1")
-    rate = s["samples_per_s"]
+    # steady rate: the pool's start (spawning, importing, compiling the model once per
+    # worker) is paid once per run and reported apart
+    rate = s["samples"] / max(s["wall_s"] - s["startup_s"], 1e-9)
     out = {
         "target": "train",
         "workers": workers,
         "samples": s["samples"],
         "samples_per_s": rate,
+        "samples_per_s_with_startup": s["samples_per_s"],
         "wall_s": s["wall_s"],
         "startup_s": s["startup_s"],
         "in_process_samples_per_s": 1.0 / per_sample,
@@ -113,12 +116,13 @@ def run_train(args: argparse.Namespace) -> dict:
         "minutes_for_10000": 10000 / rate / 60,
     }
     print(f"phase-1 sampling on {workers} worker process{'es' if workers > 1 else ''}: "
-          f"{rate:.1f} samples/s ({s['samples']} samples, start-up {s['startup_s']:.1f} s)")
+          f"{rate:.1f} samples/s after a {s['startup_s']:.1f} s start-up ({s['samples']} samples, "
+          f"{s['samples_per_s']:.1f}/s with it)")
     print(f"  in this process {out['in_process_samples_per_s']:.1f} samples/s: parallel efficiency "
           f"{out['parallel_efficiency']:.2f}")
     print(f"  a sample costs {out['cost_over_bare_steps']:.2f}x its {3 * steps_per_cycle:.0f} bare "
           "mj_steps (3 wingbeats: pre-simulation, P0, P0 + dP)")
-    print(f"  10,000 samples: {out['minutes_for_10000']:.1f} min (paper: hours)")
+    print(f"  10,000 samples: {out['minutes_for_10000']:.1f} min (target <= 5 min; paper: hours)")
     return out
 
 
