@@ -53,3 +53,18 @@ def test_phase2_from_a_phase1_database(tmp_path, capsys):
                  "16", "--workers", "1", "--seed", "3", "--out", str(p2), "--no-progress",
                  "--chunk-size", "4"]) == 0
     assert "already complete" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_real_sampler_same_database_for_one_and_two_workers(tmp_path):
+    # the determinism the fake-worker tests check, with the dove itself: sample i depends
+    # only on (seed, i), whichever process simulates it (and whatever it simulated before)
+    from flapsim.bird.sampling import SampleWorker, SamplingConfig
+    from flapsim.bird.training import train
+
+    cfg = SamplingConfig(seed=21, pitch_deg=10.0, roll_deg=10.0)
+    a, b = tmp_path / "one.db", tmp_path / "two.db"
+    train(cfg, a, 10, SampleWorker, workers=1, chunk_size=3, progress=False, kind="dove-phase1")
+    train(cfg, b, 10, SampleWorker, workers=2, chunk_size=3, progress=False, kind="dove-phase1")
+    assert a.read_bytes() == b.read_bytes()
+    assert load_database(a).n == 10
