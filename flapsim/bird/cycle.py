@@ -128,6 +128,10 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
 
     split(p)  # shape / finiteness check with a one-line error
     m, d = fl.model, fl.data
+    if not DISPATCHER.providers(d):
+        # a bird with no feather forces falls like a stone and every number looks plausible
+        raise SimulationError("the dove's feather forces are not registered (the passive "
+                              "dispatcher was cleared): build a new DoveFlight")
     if snap is not None:
         restore(fl, snap)
     ref = ref or fl.ref

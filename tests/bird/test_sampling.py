@@ -17,6 +17,15 @@ from flapsim.bird.sampling import (
     trajectory_bounds,
 )
 from flapsim.bird.wingbeat import N_PARAMS, join, p0, reference_wingbeat, split
+from flapsim.sim.callbacks import DISPATCHER
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _clean_dispatcher():
+    # overrides conftest's per-test clean-up: this module's flight keeps its feather forces
+    # registered from test to test, and the dispatcher is cleared once the module is done
+    yield
+    DISPATCHER.clear()
 
 
 @pytest.fixture(scope="module")
@@ -192,3 +201,15 @@ def test_wingbeats_leaving_a_joint_range_are_never_drawn():
             assert np.all(qmin >= w.lo) and np.all(qmax <= w.hi)
     finally:
         w.close()
+
+
+def test_a_flight_without_its_feather_forces_refuses_to_fly():
+    from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.model import Dove
+    from flapsim.errors import SimulationError
+
+    fl = DoveFlight(Dove.load())
+    fl.reset()
+    fl.close()  # unregisters the feather forces
+    with pytest.raises(SimulationError, match="not registered"):
+        cycle.fly_cycle(fl, None, p0())
