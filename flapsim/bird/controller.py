@@ -560,7 +560,10 @@ def cruise_metrics(f: ControlledFlight, target: CruiseTarget) -> dict:
 
 # -- loading --------------------------------------------------------------------------------
 
-#: The bundled controller database (``flapsim train``; see the README for the command).
+#: The bundled controller database, made by ``flapsim train --samples 5000 --pre-pitch-deg 10
+#: --pre-roll-deg 10 --seed 1 --out dove_controller.db`` (phase 1; 236-277 s for 10,000 on two
+#: cores, so about two minutes). Regenerate it after any change to the dove model: a database
+#: of another model is refused by its model hash.
 BUNDLED_DB = "dove_controller.db"
 
 
