@@ -13,7 +13,12 @@ HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat c
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--wingbeats", type=int, default=10, help="wingbeats to fly (default 10)")
+    p.add_argument("--wingbeats", type=int, default=None,
+                   help="wingbeats to fly (default 10; with --path: at most, default enough for "
+                        "1.5x the path's length)")
+    p.add_argument("--path", metavar="FILE", default=None,
+                   help="follow a 3D path (CSV with header x,y,z, or JSON list of [x,y,z]) with "
+                        "the learned controller: look-ahead, Hermite recovery, banked turns")
     p.add_argument("--controller", choices=("base", "learned"), default="base",
                    help="base: repeat the reference wingbeat (default); learned: the k-NN wingbeat "
                         "controller over a trained database, holding the start altitude, --speed "
@@ -46,6 +51,14 @@ def run(args: argparse.Namespace) -> dict:
     from flapsim.bird.model import Dove
     from flapsim.io import save_npz
 
+    if args.path:
+        from flapsim.bird.path import load_path
+
+        args.flight_path = load_path(args.path)  # one-line DataFileError before any work
+        if args.wingbeats is None:
+            args.wingbeats = int(np.ceil(1.5 * args.flight_path.length / (args.speed * 0.1075))) + 5
+    elif args.wingbeats is None:
+        args.wingbeats = 10
     if args.wingbeats < 1 or args.wingbeats > 10000:
         raise InputError(f"--wingbeats must be 1..10000, got {args.wingbeats}")
     if not (0.0 <= args.speed <= 30.0):
@@ -62,6 +75,10 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--k must be >= 1, got {args.k}")
     cfg = FlightConfig(speed=args.speed, pitch_deg=args.pitch_deg, tail_bias_deg=args.tail_bias_deg,
                        **({"table": args.table} if args.table else {}))
+    if args.path:
+        if args.controller != "learned":
+            raise InputError("--path needs --controller learned (the base controller cannot steer)")
+        return _run_path(args, cfg, width, height)
     if args.controller == "learned" or args.db or args.roll_deg:
         return _run_controlled(args, cfg, width, height)
     dove = Dove.load()
@@ -157,6 +174,65 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     if args.out:
         save_npz(args.out, positions=flight.positions, velocities=flight.velocities,
                  states=flight.states, params=flight.params,
+                 qpos=np.concatenate([s.end.qpos for s in flight.steps]),
+                 model_hash=np.array(dove.hash()), seed=np.array(args.seed))
+        print(f"trajectory written to {args.out}")
+        result["out"] = args.out
+    if args.video:
+        from flapsim.render import ChaseCamera, render_video
+
+        dt = float(dove.model.opt.timestep)
+        stride = max(1, int(round(1.0 / (args.fps * dt))))
+        qpos = np.concatenate([s.end.qpos for s in flight.steps])
+        n = render_video(dove.model, qpos[::stride], args.video, fps=1.0 / (stride * dt),
+                         camera=ChaseCamera("trunk"), width=width, height=height)
+        print(f"video written to {args.video} ({n} frames)")
+        result["video"] = args.video
+    return result
+
+
+def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
+    """Follow ``--path`` under the learned controller; the paper's Ep, Er, Eo, Ef."""
+    from flapsim.bird.controller import load_controller, trim_of_base_flight
+    from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.model import Dove
+    from flapsim.bird.path import PathTarget, fly_path, path_metrics, start_on_path
+    from flapsim.io import save_npz
+
+    path = args.flight_path
+    dove = Dove.load()
+    fl = DoveFlight(dove, table=cfg.table)
+    try:
+        ctl = load_controller(fl, args.db, method=args.method, k=args.k)
+        trim = trim_of_base_flight(fl, ctl.P0, cfg)
+        start_on_path(fl, ctl.P0, path, cfg.speed)
+        target = PathTarget(trim, path, speed=cfg.speed)
+        flight = fly_path(ctl, target, args.wingbeats, progress=True,
+                          record=bool(args.video or args.out))
+    finally:
+        fl.close()
+    quats = np.array([s.end.trunk_quat for s in flight.steps])
+    m = path_metrics(path, flight.positions[1:], quats, target.desired)
+    completed = bool(target.done)
+    result = {
+        "controller": "learned", "path": args.path, "path_length": path.length,
+        "wingbeats": len(flight.steps), "completed": completed,
+        "progress": target.s, "simulated_s": flight.simulated_s,
+        "model_hash": dove.hash(), "method": args.method, "k": ctl.regressor.k,
+        "database_samples": ctl.regressor.n,
+        "db": str(args.db) if args.db else "bundled", **m,
+        "real_time_factor": flight.simulated_s / flight.wall_time if flight.wall_time else None,
+    }
+    print(f"dove, learned controller along {args.path} ({path.length:.1f} m): "
+          f"{'completed' if completed else f'{target.s:.1f} m reached'} in {len(flight.steps)} "
+          f"wingbeats ({flight.simulated_s:.2f} s simulated)")
+    print(f"  distance to the path: mean {m['Ef_per_wingbeat']:.2f} m, largest "
+          f"{m['max_path_distance']:.2f} m")
+    print(f"  per wingbeat: Ep {m['Ep_per_wingbeat']:.3f} m, Er {m['Er_per_wingbeat']:.3f} rad, "
+          f"Eo {m['Eo_per_wingbeat']:.3f} rad, Ef {m['Ef_per_wingbeat']:.3f} m")
+    if args.out:
+        save_npz(args.out, positions=flight.positions, velocities=flight.velocities,
+                 states=flight.states, params=flight.params, path=path.points,
                  qpos=np.concatenate([s.end.qpos for s in flight.steps]),
                  model_hash=np.array(dove.hash()), seed=np.array(args.seed))
         print(f"trajectory written to {args.out}")

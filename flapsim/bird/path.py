@@ -1,0 +1,309 @@
+"""Path control (the flight paper, sec. 4.3) and its evaluation measures (sec. 7, eq. 12-15).
+
+A :class:`FlightPath` is a smooth 3D curve through given points (a cubic spline in
+arc-length-like chord parameter). Each wingbeat :class:`PathTarget` finds the closest path
+point (searching forward from the last one, so a path that crosses itself is followed in
+order), looks ``lookahead_s`` seconds ahead at the current speed (paper: 1 s, ~7 m), and
+builds a cubic Hermite recovery curve from the bird's position and velocity to that point
+and its tangent. The end of the wingbeat on that curve is the desired position; the curve's
+direction there is the desired flight direction (heading and climb), and its curvature the
+turn, flown banked so that lift balances gravity and the centrifugal force (the paper's
+eq. 5: F_lift = -m g - m v^2/r n, i.e. tan(bank) = v^2 / (g r) for a level turn). That
+becomes the wingbeat controller's target state (:func:`~flapsim.bird.controller.target_state`).
+
+Paths load from a CSV with a header row ``x,y,z`` (metres, one point per row) or a JSON
+list of ``[x, y, z]`` (or ``{"points": [...]}``); bad files get one-line errors.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from flapsim.bird import cycle
+from flapsim.bird.controller import GRAVITY, Trim, target_state
+from flapsim.errors import DataFileError, InputError
+
+
+@dataclass(frozen=True)
+class FlightPath:
+    """A smooth curve through ``points`` (n >= 2, metres)."""
+
+    points: np.ndarray
+    """(n, 3) the points the path passes through, m."""
+
+    def __post_init__(self) -> None:
+        p = np.asarray(self.points, dtype=float)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise InputError(f"a path needs (n, 3) points, got shape {p.shape}")
+        if len(p) < 2:
+            raise InputError(f"a path needs at least 2 points, got {len(p)}")
+        if not np.all(np.isfinite(p)):
+            raise InputError("path points must be finite numbers (found NaN or inf)")
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        if np.any(seg < 1e-6):
+            k = int(np.flatnonzero(seg < 1e-6)[0])
+            raise InputError(f"path points {k + 1} and {k + 2} are the same point: remove one")
+        object.__setattr__(self, "points", p)
+        knots = np.concatenate([[0.0], np.cumsum(seg)])
+        object.__setattr__(self, "_knots", knots)
+        bc = "natural" if len(p) > 2 else "not-a-knot"
+        object.__setattr__(self, "_spline", CubicSpline(knots, p, bc_type=bc))
+        # dense samples for closest-point search and arc length
+        n = max(200, int(knots[-1] / 0.05))
+        u = np.linspace(0.0, knots[-1], n)
+        pts = self._spline(u)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        object.__setattr__(self, "_u", u)
+        object.__setattr__(self, "_pts", pts)
+        object.__setattr__(self, "_s", s)
+
+    @property
+    def length(self) -> float:
+        """Arc length, m."""
+        return float(self._s[-1])
+
+    def _param(self, s: float | np.ndarray) -> np.ndarray:
+        return np.interp(np.clip(s, 0.0, self.length), self._s, self._u)
+
+    def point(self, s: float | np.ndarray) -> np.ndarray:
+        """Point(s) at arc length ``s`` (clamped to the path)."""
+        return self._spline(self._param(s))
+
+    def tangent(self, s: float | np.ndarray) -> np.ndarray:
+        """Unit tangent(s) at arc length ``s``."""
+        d = self._spline(self._param(s), 1)
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+    def closest(self, p: np.ndarray, lo: float = 0.0, hi: float | None = None) -> float:
+        """Arc length of the path point nearest ``p`` among arc lengths [lo, hi]."""
+        hi = self.length if hi is None else hi
+        sel = (self._s >= lo - 1e-9) & (self._s <= hi + 1e-9)
+        if not np.any(sel):
+            sel = np.zeros(len(self._s), bool)
+            sel[np.argmin(np.abs(self._s - np.clip(lo, 0, self.length)))] = True
+        idx = np.flatnonzero(sel)
+        d = np.linalg.norm(self._pts[idx] - np.asarray(p, float), axis=1)
+        return float(self._s[idx[np.argmin(d)]])
+
+    def distance(self, p: np.ndarray) -> float:
+        """Distance from ``p`` to the nearest path point, m."""
+        return float(np.min(np.linalg.norm(self._pts - np.asarray(p, float), axis=1)))
+
+
+def load_path(path: str | Path) -> FlightPath:
+    """A path from a CSV (header ``x,y,z``) or JSON file, with one-line errors."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise DataFileError(f"path file {path} does not exist") from None
+    except IsADirectoryError:
+        raise DataFileError(f"path file {path} is a folder; name a .csv or .json file") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise DataFileError(f"path file {path} is not text: give a CSV with header x,y,z or a "
+                            "JSON list of [x, y, z]") from None
+    try:
+        if path.suffix.lower() == ".json" or text.lstrip().startswith(("[", "{")):
+            data = json.loads(text)
+            if isinstance(data, dict):
+                data = data.get("points")
+            pts = np.array(data, dtype=float)
+        else:
+            rows = list(csv.reader(io.StringIO(text)))
+            rows = [r for r in rows if r and any(c.strip() for c in r)]
+            if not rows or [c.strip().lower() for c in rows[0]] != ["x", "y", "z"]:
+                raise DataFileError(f"path file {path}: the first row must be the header x,y,z")
+            pts = np.array([[float(c) for c in r] for r in rows[1:]], dtype=float)
+    except DataFileError:
+        raise
+    except (ValueError, TypeError, json.JSONDecodeError) as exc:
+        raise DataFileError(f"path file {path}: not a list of x, y, z numbers ({exc})") from None
+    try:
+        return FlightPath(pts.reshape(-1, 3) if pts.ndim == 2 and pts.shape[1] == 3 else pts)
+    except InputError as exc:
+        raise DataFileError(f"path file {path}: {exc}") from None
+
+
+def hermite(p0: np.ndarray, v0: np.ndarray, p1: np.ndarray, v1: np.ndarray, T: float,
+            t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity and acceleration at time ``t`` of the cubic Hermite curve from
+    (p0, v0) at 0 to (p1, v1) at ``T``."""
+    u = t / T
+    h00, h10, h01, h11 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u, -2 * u**3 + 3 * u**2, u**3 - u**2
+    d00, d10, d01, d11 = 6 * u**2 - 6 * u, 3 * u**2 - 4 * u + 1, -6 * u**2 + 6 * u, 3 * u**2 - 2 * u
+    a00, a10, a01, a11 = 12 * u - 6, 6 * u - 4, -12 * u + 6, 6 * u - 2
+    m0, m1 = T * np.asarray(v0, float), T * np.asarray(v1, float)
+    p = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
+    v = (d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1) / T
+    a = (a00 * p0 + a10 * m0 + a01 * p1 + a11 * m1) / T**2
+    return p, v, a
+
+
+def bank_for_turn(v: np.ndarray, a: np.ndarray) -> float:
+    """The bank (rad, + left wing down) that tilts lift to balance gravity and the
+    centrifugal force of following acceleration ``a`` at velocity ``v`` (eq. 5): the
+    horizontal acceleration across the flight direction over g."""
+    v = np.asarray(v, float)
+    a = np.asarray(a, float)
+    vh = np.array([v[0], v[1], 0.0])
+    n = np.linalg.norm(vh)
+    if n < 1e-9:
+        return 0.0
+    left = np.array([-vh[1], vh[0], 0.0]) / n
+    a_lat = float(a @ left)  # > 0: turning left
+    return float(np.arctan2(a_lat, GRAVITY + float(a[2])))
+
+
+@dataclass
+class PathTarget:
+    """The wingbeat controller's target state for following ``path`` (see the module doc)."""
+
+    trim: Trim
+    path: FlightPath
+    speed: float = 7.0
+    """Flight speed asked, m/s."""
+    lookahead_s: float = 1.0
+    """Look-ahead time, s (paper: 1 s)."""
+    ki_speed: float = 0.3
+    """Speed asked above ``speed`` per m/s-second of speed error, 1/s."""
+    ki_altitude: float = 0.15
+    """Climb rate asked per metre-second of height error below the path, 1/s^2."""
+    max_bank_deg: float = 45.0
+    """Largest bank asked, deg."""
+    max_climb_deg: float = 15.0
+    """Largest climb/descent angle asked, deg."""
+    s: float = 0.0
+    """Progress along the path (arc length of the last closest point), m."""
+    integrals: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    """Running integrals of (speed, height) errors."""
+    desired: list = field(default_factory=list)
+    """(position, quaternion) asked at the end of each wingbeat, for the evaluation."""
+
+    @property
+    def done(self) -> bool:
+        """True once the closest point is the path's end."""
+        return self.s >= self.path.length - 1e-6
+
+    def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
+        dt = e0.duration
+        p, v = e0.trunk_pos, e0.com_vel
+        speed_now = float(np.linalg.norm(v))
+        # progress never goes back, and looks at most a few seconds ahead (self-crossing paths)
+        self.s = self.path.closest(p, self.s - 1.0, self.s + 3.0 * max(speed_now, self.speed))
+        s_t = self.s + self.lookahead_s * max(speed_now, 1.0)
+        p_t = self.path.point(s_t)
+        t_t = self.path.tangent(s_t) * max(speed_now, 1.0)
+        T = self.lookahead_s
+        pd, vd, ad = hermite(p, v, p_t, t_t, T, min(dt, T))
+        e_v = self.speed - speed_now
+        e_z = float(self.path.point(self.s)[2] - p[2])
+        # anti-windup: the integrals may ask at most 2 m/s of speed and 1 m/s of climb
+        lim = np.array([2.0 / max(self.ki_speed, 1e-9), 1.0 / max(self.ki_altitude, 1e-9)])
+        self.integrals = np.clip(self.integrals + dt * np.array([e_v, e_z]), -lim, lim)
+        speed = self.speed + self.ki_speed * self.integrals[0]
+        heading = float(np.arctan2(vd[1], vd[0]))
+        vz = float(vd[2]) + self.ki_altitude * self.integrals[1]
+        climb = float(np.clip(np.arcsin(np.clip(vz / max(speed, 1e-3), -1, 1)),
+                              -np.radians(self.max_climb_deg), np.radians(self.max_climb_deg)))
+        bank = float(np.clip(bank_for_turn(vd, ad), -np.radians(self.max_bank_deg),
+                             np.radians(self.max_bank_deg)))
+        turn_rate = GRAVITY * np.tan(bank) / max(speed, 1e-3)
+        S = target_state(self.trim, speed, heading, climb, turn_rate, e0.S, settle_s=0.0)
+        self.desired.append((pd, _attitude_quat(heading, climb + self.trim.aoa, bank)))
+        return S
+
+
+def _attitude_quat(heading: float, pitch: float, bank_left: float) -> np.ndarray:
+    qz = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
+    qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])
+    qx = np.array([np.cos(-bank_left / 2), np.sin(-bank_left / 2), 0.0, 0.0])
+    t, q = np.empty(4), np.empty(4)
+    mujoco.mju_mulQuat(t, qz, qy)
+    mujoco.mju_mulQuat(q, t, qx)
+    return q
+
+
+def quat_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """|log(a^-1 b)|: the rotation angle between two unit quaternions, rad (the paper's
+    geodesic distance, [Lee 2008])."""
+    d = abs(float(np.clip(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0)))
+    return float(2.0 * np.arccos(d))
+
+
+def path_metrics(path: FlightPath, positions: np.ndarray, quats: np.ndarray,
+                 desired: list) -> dict:
+    """The paper's Ep, Er, Eo, Ef (eq. 12-15) over the wingbeat ends: sums and per-wingbeat
+    means. ``positions``/``quats``: (n, 3)/(n, 4) at the wingbeat ends; ``desired``: the
+    (position, quaternion) the path controller asked for each wingbeat."""
+    n = len(positions)
+    if n == 0 or len(desired) != n:
+        raise InputError(f"need one desired configuration per wingbeat ({n}), got {len(desired)}")
+    ep = [float(np.linalg.norm(d[0] - p)) for d, p in zip(desired, positions, strict=True)]
+    er = [quat_distance(q, d[1]) for d, q in zip(desired, quats, strict=True)]
+    eo = [quat_distance(quats[i], quats[i + 1]) for i in range(n - 1)]
+    ef = [path.distance(p) for p in positions]
+    out = {}
+    for name, v in (("Ep", ep), ("Er", er), ("Eo", eo), ("Ef", ef)):
+        out[name] = float(np.sum(v))
+        out[f"{name}_per_wingbeat"] = float(np.mean(v)) if len(v) else 0.0
+    out["max_path_distance"] = float(np.max(ef))
+    return out
+
+
+def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float) -> None:
+    """The cruise start moved to the path's first point, heading along its first tangent
+    (level trunk, velocity along the tangent at ``speed``)."""
+    from flapsim.bird.controller import start_cruise
+    from flapsim.bird.flight import FlightConfig
+
+    t = path.tangent(0.0)
+    heading = float(np.arctan2(t[1], t[0]))
+    start_cruise(fl, P0, FlightConfig(speed=speed))
+    d = fl.data
+    qz = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
+    q = np.empty(4)
+    mujoco.mju_mulQuat(q, qz, d.qpos[3:7].copy())
+    d.qpos[0:3] = path.point(0.0)
+    d.qpos[3:7] = q
+    d.qvel[0:3] = speed * t
+    mujoco.mj_forward(fl.model, d)
+
+
+def fly_path(controller, target: PathTarget, max_wingbeats: int, progress: bool = False,
+             record: bool = False):
+    """Follow ``target.path`` under ``controller`` until the closest point reaches its end
+    (or ``max_wingbeats``); returns the :class:`~flapsim.bird.controller.ControlledFlight`."""
+    import time
+
+    from flapsim.bird.controller import ControlledFlight
+
+    fl = controller.flight
+    start = fl.data.qpos[0:3].copy()
+    steps = []
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=round(target.path.length, 1), desc="path", unit="m")
+    t0 = time.perf_counter()
+    try:
+        for _ in range(max_wingbeats):
+            steps.append(controller.choose(target, record=record))
+            if bar is not None:
+                bar.update(round(target.s, 1) - bar.n)
+            if target.done:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+    return ControlledFlight(steps, start, time.perf_counter() - t0)
