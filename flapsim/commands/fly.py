@@ -232,7 +232,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
           f"Eo {m['Eo_per_wingbeat']:.3f} rad, Ef {m['Ef_per_wingbeat']:.3f} m")
     if args.out:
         save_npz(args.out, positions=flight.positions, velocities=flight.velocities,
-                 states=flight.states, params=flight.params, path=path.points,
+                 states=flight.states, params=flight.params, path_points=path.points,
                  qpos=np.concatenate([s.end.qpos for s in flight.steps]),
                  model_hash=np.array(dove.hash()), seed=np.array(args.seed))
         print(f"trajectory written to {args.out}")

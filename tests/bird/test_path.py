@@ -104,7 +104,12 @@ def test_the_dove_follows_a_banked_turn(tmp_path, capsys):
     f = tmp_path / "arc.csv"
     np.savetxt(f, _arc(), delimiter=",", header="x,y,z", comments="")
     js = tmp_path / "a.json"
-    assert main(["fly", "--controller", "learned", "--path", str(f), "--json", str(js)]) == 0
+    out = tmp_path / "a.npz"
+    assert main(["fly", "--controller", "learned", "--path", str(f), "--json", str(js),
+                 "--out", str(out)]) == 0
+    with np.load(out) as z:
+        np.testing.assert_array_equal(z["path_points"], _arc())
+        assert len(z["positions"]) == json.loads(js.read_text())["wingbeats"] + 1
     s = json.loads(js.read_text())
     assert s["completed"]
     assert s["max_path_distance"] < 2.0
