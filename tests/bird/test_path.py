@@ -127,3 +127,17 @@ def test_path_cli_errors(tmp_path, capsys):
     np.savetxt(good, _arc(n=5), delimiter=",", header="x,y,z", comments="")
     assert main(["fly", "--path", str(good)]) == 2  # the base controller cannot steer
     assert "--controller learned" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_dove_follows_a_level_figure_of_eight(tmp_path):
+    # two 35 m lobes (427 m): left and right turns and the bank reversals between them; the
+    # same distance flown straight along the start heading leaves it by up to 363 m
+    t = np.linspace(0, 2 * np.pi, 160)
+    R = 35.0
+    f = tmp_path / "eight.json"
+    f.write_text(json.dumps(np.stack([2 * R * np.sin(t), R * np.sin(2 * t), 10 + 0 * t], 1).tolist()))
+    js = tmp_path / "e.json"
+    assert main(["fly", "--controller", "learned", "--path", str(f), "--json", str(js)]) == 0
+    s = json.loads(js.read_text())
+    assert s["completed"] and s["max_path_distance"] < 2.0 and s["Ef_per_wingbeat"] < 0.5
