@@ -56,7 +56,7 @@ def test_phase2_from_a_phase1_database(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_real_sampler_same_database_for_one_and_two_workers(tmp_path):
+def test_real_sampler_same_database_for_any_workers_and_backend(tmp_path):
     # the determinism the fake-worker tests check, with the dove itself: sample i depends
     # only on (seed, i), whichever process simulates it (and whatever it simulated before)
     from flapsim.bird.sampling import SampleWorker, SamplingConfig
@@ -68,3 +68,9 @@ def test_real_sampler_same_database_for_one_and_two_workers(tmp_path):
     train(cfg, b, 10, SampleWorker, workers=2, chunk_size=3, progress=False, kind="dove-phase1")
     assert a.read_bytes() == b.read_bytes()
     assert load_database(a).n == 10
+    # and on Ray actors (a private local instance)
+    pytest.importorskip("ray", reason="Ray is not installed (pip install 'flapsim[cluster]')")
+    c = tmp_path / "ray.db"
+    train(cfg, c, 10, SampleWorker, workers=2, backend="ray", chunk_size=3, progress=False,
+          kind="dove-phase1")
+    assert c.read_bytes() == a.read_bytes()
