@@ -96,7 +96,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"flapsim {args.command}: interrupted", file=sys.stderr)
+        hint = "; run the same command again to resume" if args.command == "train" else ""
+        print(f"flapsim {args.command}: interrupted{hint}", file=sys.stderr)
         return 130
     return 0
 
