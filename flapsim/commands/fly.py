@@ -133,7 +133,6 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
     from flapsim.bird.wingbeat import p0, with_tail_bias
-    from flapsim.io import save_npz
 
     dove = Dove.load()
     fl = DoveFlight(dove, table=cfg.table)
@@ -171,23 +170,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     print(f"  largest deviations: altitude {m['max_altitude_deviation']:.2f} m, speed "
           f"{m['max_speed_deviation']:.2f} m/s, heading {m['max_heading_deviation_deg']:.1f} deg; "
           f"largest roll {m['max_abs_roll_deg']:.1f} deg")
-    if args.out:
-        save_npz(args.out, positions=flight.positions, velocities=flight.velocities,
-                 states=flight.states, params=flight.params,
-                 qpos=np.concatenate([s.end.qpos for s in flight.steps]),
-                 model_hash=np.array(dove.hash()), seed=np.array(args.seed))
-        print(f"trajectory written to {args.out}")
-        result["out"] = args.out
-    if args.video:
-        from flapsim.render import ChaseCamera, render_video
-
-        dt = float(dove.model.opt.timestep)
-        stride = max(1, int(round(1.0 / (args.fps * dt))))
-        qpos = np.concatenate([s.end.qpos for s in flight.steps])
-        n = render_video(dove.model, qpos[::stride], args.video, fps=1.0 / (stride * dt),
-                         camera=ChaseCamera("trunk"), width=width, height=height)
-        print(f"video written to {args.video} ({n} frames)")
-        result["video"] = args.video
+    _write_outputs(args, dove, flight, result, width, height)
     return result
 
 
@@ -197,7 +180,6 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
     from flapsim.bird.path import PathTarget, fly_path, path_metrics, start_on_path
-    from flapsim.io import save_npz
 
     path = args.flight_path
     dove = Dove.load()
@@ -230,11 +212,23 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
           f"{m['max_path_distance']:.2f} m")
     print(f"  per wingbeat: Ep {m['Ep_per_wingbeat']:.3f} m, Er {m['Er_per_wingbeat']:.3f} rad, "
           f"Eo {m['Eo_per_wingbeat']:.3f} rad, Ef {m['Ef_per_wingbeat']:.3f} m")
+    _write_outputs(args, dove, flight, result, width, height, path_points=path.points)
+    return result
+
+
+def _write_outputs(args: argparse.Namespace, dove, flight, result: dict, width: int, height: int,
+                   **extra: np.ndarray) -> None:
+    """``--out`` (per-wingbeat record and every step's positions, npz) and ``--video`` of a
+    controlled flight; adds their paths to ``result``."""
+    from flapsim.io import save_npz
+
+    if not (args.out or args.video):
+        return
+    qpos = np.concatenate([s.end.qpos for s in flight.steps])
     if args.out:
         save_npz(args.out, positions=flight.positions, velocities=flight.velocities,
-                 states=flight.states, params=flight.params, path_points=path.points,
-                 qpos=np.concatenate([s.end.qpos for s in flight.steps]),
-                 model_hash=np.array(dove.hash()), seed=np.array(args.seed))
+                 states=flight.states, params=flight.params, qpos=qpos,
+                 model_hash=np.array(dove.hash()), seed=np.array(args.seed), **extra)
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
@@ -242,9 +236,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
 
         dt = float(dove.model.opt.timestep)
         stride = max(1, int(round(1.0 / (args.fps * dt))))
-        qpos = np.concatenate([s.end.qpos for s in flight.steps])
         n = render_video(dove.model, qpos[::stride], args.video, fps=1.0 / (stride * dt),
                          camera=ChaseCamera("trunk"), width=width, height=height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
-    return result
