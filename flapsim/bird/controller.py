@@ -415,9 +415,6 @@ class WingbeatController:
     P0: np.ndarray = field(default_factory=lambda: with_tail_bias(p0(), FlightConfig.tail_bias_deg))
     lo: np.ndarray | None = None
     hi: np.ndarray | None = None
-    dS_limit: np.ndarray | None = None
-    """(8,) largest |dS| asked per dimension (``None``: no limit). A request beyond what one
-    wingbeat can do drags a local regression away from the samples that matter."""
 
     def __post_init__(self) -> None:
         if self.regressor.dP.shape[1] != N_PARAMS:
@@ -437,8 +434,6 @@ class WingbeatController:
         e0 = cycle.fly_cycle(fl, snap, self.P0, self.ref)
         S_t = np.asarray(target(e0), float)
         dS = S_t - e0.S
-        if self.dS_limit is not None:
-            dS = np.clip(dS, -self.dS_limit, self.dS_limit)
         P = self.P0 + self.regressor.predict(dS)
         Pp = project_to_ranges(self.ref, P, self.lo, self.hi)
         projected = bool(np.max(np.abs(Pp - P)) > 1e-12)

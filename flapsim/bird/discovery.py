@@ -18,7 +18,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,11 +28,12 @@ from flapsim.bird.sampling import (
     RANGE_TOLERANCE,
     SampleWorker,
     SamplingConfig,
+    StoredConfig,
     WingbeatSet,
     collect_chunk,
     file_sha256,
 )
-from flapsim.errors import DataFileError, InputError, SimulationError
+from flapsim.errors import InputError, SimulationError
 
 
 def _features(alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
@@ -88,8 +89,10 @@ class Manifold:
 
 
 @dataclass(frozen=True)
-class DiscoveryConfig:
+class DiscoveryConfig(StoredConfig):
     """Every parameter of a discovery run (phase 2, step 1)."""
+
+    kind = "discovery configuration"
 
     seed: int = 0
     """Base seed: task i draws from ``default_rng([seed, i])``."""
@@ -105,18 +108,6 @@ class DiscoveryConfig:
     """Elevation asked within +-this per wingbeat, deg."""
     sampling: dict | None = None
     """The phase-1 sampling parameters (pre-states, tail bias, table); default: the database's."""
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> DiscoveryConfig:
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise DataFileError(f"discovery configuration has unknown keys {sorted(unknown)}: "
-                                "written by a newer flapsim? upgrade flapsim")
-        return cls(**d)
 
 
 class DiscoveryWorker:

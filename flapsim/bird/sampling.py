@@ -200,9 +200,30 @@ def project_to_ranges(ref: ReferenceWingbeat, p: np.ndarray, lo: np.ndarray, hi:
 # -- configuration and the worker -----------------------------------------------------------
 
 
+class StoredConfig:
+    """A dataclass configuration that databases store as JSON (provenance) and read back."""
+
+    #: How error messages name it.
+    kind = "configuration"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict):
+        names = {f.name for f in fields(cls)}
+        unknown = set(d) - names
+        if unknown:
+            raise DataFileError(f"{cls.kind} has unknown keys {sorted(unknown)}: written by a newer "
+                                "flapsim? upgrade flapsim")
+        return cls(**d)
+
+
 @dataclass(frozen=True)
-class SamplingConfig:
+class SamplingConfig(StoredConfig):
     """Every parameter of a phase-1 sampling run (stored in the database for provenance)."""
+
+    kind = "sampling configuration"
 
     seed: int = 0
     """Base seed: sample i draws from ``default_rng([seed, i])``."""
@@ -234,18 +255,6 @@ class SamplingConfig:
     beyond the examples' steering/elevation extremes (see :mod:`flapsim.bird.discovery`)."""
     extrapolate_scale: float = 1.6
     """How far beyond the extremes, as a multiple of the examples' largest |alpha|/|beta|."""
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> SamplingConfig:
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise DataFileError(f"sampling configuration has unknown keys {sorted(unknown)}: "
-                                "written by a newer flapsim? upgrade flapsim")
-        return cls(**d)
 
     def validate(self) -> None:
         if not (0 < self.sigma <= 10):
