@@ -25,13 +25,13 @@ import numpy as np
 from flapsim.bird import cycle
 from flapsim.bird.database import ChunkResult
 from flapsim.bird.sampling import (
-    RANGE_TOLERANCE,
     SampleWorker,
     SamplingConfig,
     StoredConfig,
     WingbeatSet,
     collect_chunk,
     file_sha256,
+    sample_fields,
 )
 from flapsim.errors import InputError, SimulationError
 
@@ -160,16 +160,7 @@ class DiscoveryWorker:
             step = self.controller.choose(SteerTarget(self.trim, alpha, beta), start)
         except SimulationError:
             return None, "diverged"
-        e0, e1 = step.reference, step.end
-        if e1.range_excess > RANGE_TOLERANCE or e0.range_excess > RANGE_TOLERANCE:
-            return None, "left_range"
-        h0, c0 = cycle.heading_and_climb(e0.com_vel)
-        h1, c1 = cycle.heading_and_climb(e1.com_vel)
-        return {
-            "S": S, "S0": e0.S, "dS": e1.S - e0.S, "dP": step.P - sp.P0,
-            "alpha": np.float64(cycle.wrap(h1 - h0)), "beta": np.float64(c1 - c0),
-            "dspeed": np.float64(np.linalg.norm(e1.com_vel) - np.linalg.norm(e0.com_vel)),
-        }, ""
+        return sample_fields(S, step.P - sp.P0, step.reference, step.end)
 
     def run_chunk(self, start: int, stop: int) -> ChunkResult:
         return collect_chunk(self.sample, start, stop)

@@ -269,6 +269,22 @@ class SamplingConfig(StoredConfig):
             raise InputError(f"cruise speed must be 1..20 m/s, got {self.cruise_speed}")
 
 
+def sample_fields(S: np.ndarray, dP: np.ndarray, e0: cycle.CycleEnd, e1: cycle.CycleEnd
+                  ) -> tuple[dict[str, np.ndarray] | None, str]:
+    """A sample's :data:`FIELDS` from the reference wingbeat's end ``e0`` and the flown one's
+    ``e1`` (both from state ``S``), or (None, "left_range") when either pressed a joint past
+    its range by more than :data:`RANGE_TOLERANCE`."""
+    if e0.range_excess > RANGE_TOLERANCE or e1.range_excess > RANGE_TOLERANCE:
+        return None, "left_range"
+    h0, c0 = cycle.heading_and_climb(e0.com_vel)
+    h1, c1 = cycle.heading_and_climb(e1.com_vel)
+    return {
+        "S": S, "S0": e0.S, "dS": e1.S - e0.S, "dP": dP,
+        "alpha": np.float64(cycle.wrap(h1 - h0)), "beta": np.float64(c1 - c0),
+        "dspeed": np.float64(np.linalg.norm(e1.com_vel) - np.linalg.norm(e0.com_vel)),
+    }, ""
+
+
 def collect_chunk(sample, start: int, stop: int) -> ChunkResult:
     """Run ``sample(i)`` -> (fields or None, rejection reason) over [start, stop)."""
     keep, rows, rejected = [], [], {}
@@ -395,15 +411,7 @@ class SampleWorker:
             e1 = cycle.fly_cycle(fl, start, self.P0 + dP, self.ref)
         except SimulationError:
             return None, "diverged"
-        if e0.range_excess > RANGE_TOLERANCE or e1.range_excess > RANGE_TOLERANCE:
-            return None, "left_range"
-        h0, c0 = cycle.heading_and_climb(e0.com_vel)
-        h1, c1 = cycle.heading_and_climb(e1.com_vel)
-        return {
-            "S": S, "S0": e0.S, "dS": e1.S - e0.S, "dP": dP,
-            "alpha": np.float64(cycle.wrap(h1 - h0)), "beta": np.float64(c1 - c0),
-            "dspeed": np.float64(np.linalg.norm(e1.com_vel) - np.linalg.norm(e0.com_vel)),
-        }, ""
+        return sample_fields(S, dP, e0, e1)
 
     def run_chunk(self, start: int, stop: int) -> ChunkResult:
         return collect_chunk(self.sample, start, stop)
