@@ -12,7 +12,16 @@ from flapsim.sim.callbacks import DISPATCHER
 
 
 @pytest.fixture(autouse=True)
-def _clean_dispatcher():
+def _clean_dispatcher(request):
+    yield
+    # a module that shares one flight between its tests (``SHARED_FLIGHT = True``) keeps its
+    # force providers registered until the module is done
+    if not getattr(request.module, "SHARED_FLIGHT", False):
+        DISPATCHER.clear()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _clean_dispatcher_after_module():
     yield
     DISPATCHER.clear()
 

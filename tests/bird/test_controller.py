@@ -22,15 +22,9 @@ from flapsim.bird.model import Dove
 from flapsim.bird.sampling import RANGE_TOLERANCE
 from flapsim.bird.wingbeat import control_table
 from flapsim.errors import DataFileError
-from flapsim.sim.callbacks import DISPATCHER
 
-
-@pytest.fixture(scope="module", autouse=True)
-def _clean_dispatcher():
-    # overrides conftest's per-test clean-up: this module's flight keeps its feather forces
-    # registered from test to test, and the dispatcher is cleared once the module is done
-    yield
-    DISPATCHER.clear()
+#: this module's flight keeps its feather forces registered from test to test (conftest)
+SHARED_FLIGHT = True
 
 
 @pytest.fixture(scope="module")

@@ -17,15 +17,9 @@ from flapsim.bird.sampling import (
     trajectory_bounds,
 )
 from flapsim.bird.wingbeat import N_PARAMS, join, p0, reference_wingbeat, split
-from flapsim.sim.callbacks import DISPATCHER
 
-
-@pytest.fixture(scope="module", autouse=True)
-def _clean_dispatcher():
-    # overrides conftest's per-test clean-up: this module's flight keeps its feather forces
-    # registered from test to test, and the dispatcher is cleared once the module is done
-    yield
-    DISPATCHER.clear()
+#: this module's flight keeps its feather forces registered from test to test (conftest)
+SHARED_FLIGHT = True
 
 
 @pytest.fixture(scope="module")
