@@ -426,9 +426,11 @@ class WingbeatController:
     def ref(self) -> ReferenceWingbeat:
         return self.flight.ref
 
-    def choose(self, target, snap: cycle.Snapshot | None = None, record: bool = False
-               ) -> ControlStep:
-        """Decide and fly one wingbeat toward ``target`` (a callable: P0's end -> S_target)."""
+    def choose(self, target, snap: cycle.Snapshot | None = None, record: bool = False,
+               push: cycle.Push | None = None) -> ControlStep:
+        """Decide and fly one wingbeat toward ``target`` (a callable: P0's end -> S_target).
+        ``push`` acts on the wingbeat flown only: the controller's prediction cannot see it
+        coming."""
         fl = self.flight
         snap = snap or cycle.snapshot(fl)
         e0 = cycle.fly_cycle(fl, snap, self.P0, self.ref)
@@ -437,7 +439,7 @@ class WingbeatController:
         P = self.P0 + self.regressor.predict(dS)
         Pp = project_to_ranges(self.ref, P, self.lo, self.hi)
         projected = bool(np.max(np.abs(Pp - P)) > 1e-12)
-        end = cycle.fly_cycle(fl, snap, Pp, self.ref, record=record)
+        end = cycle.fly_cycle(fl, snap, Pp, self.ref, record=record, push=push)
         return ControlStep(Pp, dS, S_t, e0, end, projected)
 
 
@@ -448,10 +450,10 @@ class BaseController:
     flight: DoveFlight
     P0: np.ndarray
 
-    def choose(self, target, snap: cycle.Snapshot | None = None, record: bool = False
-               ) -> ControlStep:
+    def choose(self, target, snap: cycle.Snapshot | None = None, record: bool = False,
+               push: cycle.Push | None = None) -> ControlStep:
         fl = self.flight
-        end = cycle.fly_cycle(fl, snap, self.P0, fl.ref, record=record)
+        end = cycle.fly_cycle(fl, snap, self.P0, fl.ref, record=record, push=push)
         S_t = np.asarray(target(end), float)
         return ControlStep(self.P0.copy(), S_t - end.S, S_t, end, end, False)
 

@@ -116,10 +116,40 @@ def model_dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+@dataclass(frozen=True)
+class Push:
+    """An external force on one body for the first ``steps`` steps of a wingbeat (the
+    flight paper's random pushes: 3-12 N for 0.1 s at the trunk's centre of mass)."""
+
+    body: int
+    """Body id (MuJoCo applies ``xfrc_applied`` at the body's centre of mass)."""
+    force: np.ndarray
+    """(3,) world force, N."""
+    steps: int
+    """Steps it lasts (from the wingbeat's start)."""
+
+
+def _push_controls(m: mujoco.MjModel, ctrl: np.ndarray, push: Push) -> tuple[np.ndarray, int]:
+    """Per-step control vectors carrying ``ctrl`` and the push's ``xfrc_applied`` (in
+    ``mj_getState``'s own layout for CTRL | XFRC_APPLIED), and that spec."""
+    spec = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+    scratch = mujoco.MjData(m)
+    out = np.empty((len(ctrl), mujoco.mj_stateSize(m, spec)))
+    for k in range(len(ctrl)):
+        scratch.ctrl[:] = ctrl[k]
+        scratch.xfrc_applied[:] = 0.0
+        if k < push.steps:
+            scratch.xfrc_applied[push.body, 0:3] = push.force
+        mujoco.mj_getState(m, scratch, out[k], spec)
+    return out, int(spec)
+
+
 def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
-              ref: ReferenceWingbeat | None = None, record: bool = False) -> CycleEnd:
+              ref: ReferenceWingbeat | None = None, record: bool = False,
+              push: Push | None = None) -> CycleEnd:
     """Fly one wingbeat of parameters ``p`` from ``snap`` (``None``: from the flight's
-    current state) and leave the flight at its end.
+    current state) and leave the flight at its end; ``push``: an external force during
+    its first steps.
 
     Raises :class:`~flapsim.errors.SimulationError` (one line) when the simulation
     diverges; the flight is then in an undefined state (restore a snapshot).
@@ -140,8 +170,14 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
     mujoco.mj_getState(m, d, s0, STATE_SPEC)
     warm = d.qacc_warmstart.copy()
     n = len(ctrl)
-    states, _ = rollout.rollout(m, d, s0[None], ctrl[None], initial_warmstart=warm[None],
-                                skip_checks=False)
+    if push is None:
+        states, _ = rollout.rollout(m, d, s0[None], ctrl[None], initial_warmstart=warm[None],
+                                    skip_checks=False)
+    else:
+        controls, spec = _push_controls(m, ctrl, push)
+        states, _ = rollout.rollout(m, d, s0[None], controls[None], control_spec=spec,
+                                    initial_warmstart=warm[None], skip_checks=False)
+        d.xfrc_applied[:] = 0.0
     states = states[0]
     if not np.all(np.isfinite(states[-1])):
         raise SimulationError(f"dove simulation diverged within a wingbeat at t={states[-1, 0]:.4f} s "

@@ -76,6 +76,18 @@ def feather_polygons(dove: Dove) -> PolygonSet:
     return PolygonSet.from_triangles(bodies, tris, forward=fwd, table=0, labels=names)
 
 
+def _without(polys: PolygonSet, names: tuple[str, ...]) -> PolygonSet:
+    """``polys`` less every polygon labelled with one of ``names`` (one-line error for a
+    name that is no feather)."""
+    labels = np.asarray(polys.labels)
+    unknown = sorted(set(names) - set(labels.tolist()))
+    if unknown:
+        raise InputError(f"no feather named {', '.join(unknown)} (primaries are l_p1..l_p10 and "
+                         "r_p1..r_p10, p10 outermost)")
+    keep = ~np.isin(labels, list(names))
+    return polys.subset(keep)
+
+
 #: Index of the bluff-body table in :class:`DoveFlight`'s table list (feathers: 0).
 BODY_TABLE = 1
 
@@ -129,14 +141,22 @@ class DoveFlight:
     table: str = FlightConfig.table
     wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
     use_rollout: bool = True
+    flow: tuple = ()
+    """More flow primitives (:mod:`flapsim.fluid.flow`: gusts, breezes, ...) added to the
+    steady ``wind``; time-dependent ones run on the simulation clock."""
+    plucked: tuple[str, ...] = ()
+    """Feathers (names such as ``l_p9``) whose triangles carry no force: plucked. Their
+    mass stays (a primary is ~0.3 % of the bird's)."""
 
     def __post_init__(self) -> None:
         m = self.dove.model
         self.model = m
         self.data = mujoco.MjData(m)
-        self.polygons = PolygonSet.concat([feather_polygons(self.dove),
-                                           body_polygons(self.dove)])
-        self.flow = FlowField([Uniform(self.wind)])
+        feathers = feather_polygons(self.dove)
+        if self.plucked:
+            feathers = _without(feathers, self.plucked)
+        self.polygons = PolygonSet.concat([feathers, body_polygons(self.dove)])
+        self.flow = FlowField([Uniform(self.wind), *self.flow])
         self.aero = SurfaceForces(m, self.polygons,
                                   [get_table(self.table), bluff_body(self.dove.params.body_drag_cd)],
                                   FluidParams(AIR_DENSITY), self.flow, name="dove feathers and body")

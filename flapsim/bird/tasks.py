@@ -1,0 +1,275 @@
+"""Flight tasks: a path flown by the learned controller under disturbances, judged.
+
+:func:`fly_task` is the one runner behind every flight scenario (``flapsim eval``): the
+dove starts on the path's first point, the path controller (:mod:`flapsim.bird.path`)
+drives the wingbeat controller until the path's end, and the flight is judged by the
+paper's Ep, Er, Eo, Ef (eq. 12-15) and by whether it got *lost*: left a tube around the
+path (``tube_m``), fell below it, or hit an obstacle. Disturbances are the paper's:
+
+* pushes (:class:`PushSpec`): a force for 0.1 s at the trunk's centre of mass, in the
+  bird's heading frame (front, back, left, right, up, down); the controller's P0
+  prediction does not see it coming;
+* plucked feathers (names such as ``l_p9``: left primary 9, p10 outermost): their
+  triangles carry no force;
+* wind: a steady wind plus any flow primitives (gusts, breezes) of :mod:`flapsim.fluid.flow`;
+* obstacles (:class:`Forest`): vertical trunks with round crowns; a collision is the bird
+  (a sphere of half its span around the trunk) touching one.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flapsim.bird import cycle
+from flapsim.bird.path import FlightPath, PathTarget, path_metrics, start_on_path
+from flapsim.errors import InputError, SimulationError
+
+#: Unit push directions in the bird's heading frame: (forward, left, up) components.
+PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
+    "front": (1.0, 0.0, 0.0), "back": (-1.0, 0.0, 0.0), "left": (0.0, 1.0, 0.0),
+    "right": (0.0, -1.0, 0.0), "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0),
+}
+
+
+@dataclass(frozen=True)
+class PushSpec:
+    """A push: ``newtons`` along ``direction`` (a key of :data:`PUSH_DIRECTIONS`) for
+    ``duration_s`` from the first wingbeat that starts at or after ``at_s``."""
+
+    at_s: float
+    newtons: float
+    direction: str
+    duration_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.direction not in PUSH_DIRECTIONS:
+            raise InputError(f"push direction must be one of {', '.join(PUSH_DIRECTIONS)}, "
+                             f"got {self.direction!r}")
+        if not (np.isfinite(self.newtons) and 0 <= self.newtons <= 100):
+            raise InputError(f"push force must be 0..100 N, got {self.newtons}")
+
+    def world_force(self, heading: float) -> np.ndarray:
+        f, lft, u = PUSH_DIRECTIONS[self.direction]
+        c, s = np.cos(heading), np.sin(heading)
+        return self.newtons * np.array([f * c - lft * s, f * s + lft * c, u])
+
+
+@dataclass(frozen=True)
+class Tree:
+    """A vertical trunk (cylinder from the ground) with a spherical crown on top, m."""
+
+    x: float
+    y: float
+    height: float
+    trunk_radius: float
+    crown_radius: float
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        """Distance from points (n, 3) to the tree's surface (negative inside)."""
+        p = np.atleast_2d(p)
+        r = np.hypot(p[:, 0] - self.x, p[:, 1] - self.y)
+        z = p[:, 2]
+        # trunk: a capped cylinder 0..height
+        dz = np.maximum(np.maximum(-z, z - self.height), 0.0)
+        d_trunk = np.where(dz > 0, np.hypot(np.maximum(r - self.trunk_radius, 0.0), dz),
+                           r - self.trunk_radius)
+        c = np.array([self.x, self.y, self.height])
+        d_crown = np.linalg.norm(p - c, axis=1) - self.crown_radius
+        return np.minimum(d_trunk, d_crown)
+
+
+@dataclass(frozen=True)
+class Forest:
+    """Trees (see :class:`Tree`); the bird is a sphere of radius ``bird_radius_m``."""
+
+    trees: tuple[Tree, ...]
+    bird_radius_m: float = 0.26
+    """Half the dove's span (0.51 m): a wing tip may touch anywhere around the trunk."""
+
+    def clearance(self, p: np.ndarray) -> np.ndarray:
+        """Distance from each point (n, 3) to the nearest tree, less the bird's radius."""
+        p = np.atleast_2d(p)
+        if not self.trees:
+            return np.full(len(p), np.inf)
+        return np.min([t.distance(p) for t in self.trees], axis=0) - self.bird_radius_m
+
+
+@dataclass
+class Task:
+    """What to fly and under what."""
+
+    path: FlightPath
+    speed: float = 7.0
+    """Flight speed asked, m/s."""
+    pushes: tuple[PushSpec, ...] = ()
+    plucked: tuple[str, ...] = ()
+    wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    flow: tuple = ()
+    """More flow primitives (gusts, breezes) on the simulation clock."""
+    forest: Forest | None = None
+    tube_m: float = 3.0
+    """Lost when farther than this from the path at a wingbeat's end, m."""
+    max_wingbeats: int | None = None
+    """Default: enough for 1.5x the path's length at ``speed``."""
+    stop_when_lost_m: float = 15.0
+    """Give up when this far from the path (nothing more to learn), m."""
+
+
+@dataclass
+class TaskResult:
+    """A flown task: the per-wingbeat record and the verdict."""
+
+    status: str
+    """``completed`` (reached the path's end, never lost), ``lost`` or ``diverged``."""
+    reason: str
+    metrics: dict
+    positions: np.ndarray
+    """(n + 1, 3) trunk position at the start and each wingbeat's end, m."""
+    quats: np.ndarray
+    """(n, 4) trunk orientation at each wingbeat's end."""
+    desired: list
+    steering_deg: np.ndarray
+    """(n,) heading change over each wingbeat, deg (+ left)."""
+    elevation_deg: np.ndarray
+    """(n,) climb-angle change over each wingbeat, deg (+ up)."""
+    qpos: np.ndarray | None
+    """(steps, nq) every simulation step's positions, when recorded."""
+    times: np.ndarray
+    """(n + 1,) simulation time at the start and each wingbeat's end, s."""
+    wall_s: float
+    collisions: int = 0
+    push_log: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "completed"
+
+
+def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None):
+    """The :class:`~flapsim.bird.flight.DoveFlight` and learned controller for ``task``."""
+    from flapsim.bird.controller import load_controller
+    from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.model import Dove
+
+    fl = DoveFlight(Dove.load(), wind=tuple(task.wind), flow=tuple(task.flow),
+                    plucked=tuple(task.plucked))
+    try:
+        ctl = load_controller(fl, db, method=method, k=k)
+    except BaseException:
+        fl.close()
+        raise
+    return fl, ctl
+
+
+def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
+             record: bool = False, progress: bool = False, controller=None) -> TaskResult:
+    """Fly ``task`` with the learned controller over database ``db`` (default: bundled);
+    ``controller``: an already built one (its flight's disturbances must match the task)."""
+    from flapsim.bird.controller import trim_of_base_flight
+    from flapsim.bird.flight import FlightConfig
+
+    own = controller is None
+    if own:
+        fl, ctl = build_flight(task, db, method, k)
+    else:
+        ctl = controller
+        fl = ctl.flight
+    try:
+        cfg = FlightConfig(speed=task.speed)
+        trim = trim_of_base_flight(fl, ctl.P0, cfg)
+        start_on_path(fl, ctl.P0, task.path, task.speed)
+        target = PathTarget(trim, task.path, speed=task.speed)
+        return _fly(fl, ctl, target, task, record, progress)
+    finally:
+        if own:
+            fl.close()
+
+
+def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) -> TaskResult:
+    m, d = fl.model, fl.data
+    dt = float(m.opt.timestep)
+    n_max = task.max_wingbeats or int(np.ceil(1.5 * task.path.length / (task.speed * 0.1075))) + 5
+    pushes = sorted(task.pushes, key=lambda p: p.at_s)
+    positions = [d.qpos[0:3].copy()]
+    times = [float(d.time)]
+    quats, steer, elev, qpos, push_log = [], [], [], [], []
+    v_prev = fl.com_velocity()
+    status, reason = "lost", f"the path's end not reached in {n_max} wingbeats"
+    lost_at = None
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=round(task.path.length, 1), desc="path", unit="m")
+    t0 = time.perf_counter()
+    try:
+        for _ in range(n_max):
+            push = None
+            if pushes and d.time + 1e-9 >= pushes[0].at_s:
+                ps = pushes.pop(0)
+                heading = float(np.arctan2(v_prev[1], v_prev[0]))
+                force = ps.world_force(heading)
+                push = cycle.Push(fl.dove.trunk, force, int(round(ps.duration_s / dt)))
+                push_log.append({"t": float(d.time), "newtons": ps.newtons,
+                                 "direction": ps.direction, "force": force.tolist()})
+            try:
+                step = ctl.choose(target, record=record, push=push)
+            except SimulationError as exc:
+                status, reason = "diverged", str(exc)
+                break
+            e = step.end
+            positions.append(e.trunk_pos)
+            times.append(float(d.time))
+            quats.append(e.trunk_quat)
+            h0, c0 = cycle.heading_and_climb(v_prev)
+            h1, c1 = cycle.heading_and_climb(e.com_vel)
+            steer.append(np.degrees(cycle.wrap(h1 - h0)))
+            elev.append(np.degrees(c1 - c0))
+            v_prev = e.com_vel
+            if record:
+                qpos.append(e.qpos)
+            if bar is not None:
+                bar.update(round(target.s, 1) - bar.n)
+            off = task.path.distance(e.trunk_pos)
+            if lost_at is None and off > task.tube_m:
+                lost_at = (len(quats), float(d.time), off)
+            if off > task.stop_when_lost_m:
+                break
+            if target.done:
+                status, reason = "completed", ""
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - t0
+    positions_a = np.array(positions)
+    quats_a = np.array(quats).reshape(-1, 4)
+    desired = target.desired[:len(quats)]
+    metrics = path_metrics(task.path, positions_a[1:], quats_a, desired) if len(quats) else {}
+    collisions = 0
+    qpos_a = np.concatenate(qpos) if record and qpos else None
+    if task.forest is not None:
+        # every simulated step when recorded, else the wingbeat ends
+        pts = qpos_a[:, 0:3] if qpos_a is not None else positions_a
+        hits = task.forest.clearance(pts) < 0.0
+        collisions = int(np.count_nonzero(np.diff(np.concatenate([[0], hits.astype(int)])) == 1))
+        metrics["min_tree_clearance"] = float(np.min(task.forest.clearance(pts)))
+    if lost_at is not None and status != "diverged":
+        status = "lost"
+        reason = (f"left the {task.tube_m:g} m tube at wingbeat {lost_at[0]} "
+                  f"(t = {lost_at[1]:.1f} s, {lost_at[2]:.1f} m off)")
+    if collisions and status == "completed":
+        status, reason = "lost", f"hit a tree {collisions} time(s)"
+    sim_s = times[-1] - times[0]
+    metrics.update({
+        "wingbeats": len(quats), "simulated_s": sim_s, "progress_m": float(target.s),
+        "path_length_m": task.path.length, "collisions": collisions,
+        "steering_range_deg": [float(np.min(steer)), float(np.max(steer))] if steer else None,
+        "elevation_range_deg": [float(np.min(elev)), float(np.max(elev))] if elev else None,
+        "real_time_factor": sim_s / wall if wall > 0 else None,
+    })
+    return TaskResult(status, reason, metrics, positions_a, quats_a, desired, np.array(steer),
+                      np.array(elev), qpos_a, np.array(times), wall, collisions, push_log)

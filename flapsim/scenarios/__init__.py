@@ -1,0 +1,155 @@
+"""One registry of evaluation scenarios for every animal (``flapsim eval``).
+
+A :class:`Scenario` is a named task with a runner: ``runner(scenario, options) -> dict``.
+Families register theirs in their own module (``flapsim/scenarios/flight.py``,
+``flapsim/scenarios/swim.py``, ...), imported by :func:`load_all`; names are unique and
+start with the family's prefix where it is not flight (``swim-...``).
+
+A runner returns a JSON-able dict with at least::
+
+    {"status": "completed" | "lost" | "failed" | ..., "ok": bool, "reason": str,
+     "metrics": {name: number, ...}, "files": [paths written]}
+
+:func:`run_scenario` adds the name, family, wall time, and turns a
+:class:`~flapsim.errors.FlapsimError` (bad database, diverged simulation) into a failed
+result with its one-line reason, so that one broken run never hides the others.
+:class:`EvalWorker` runs scenarios on :class:`flapsim.parallel.ChunkExecutor` (chunk i =
+the i-th name of its list), the same executor as training: local processes or Ray.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from flapsim.errors import FlapsimError, InputError
+
+#: The modules that register scenarios, in listing order.
+FAMILY_MODULES: tuple[str, ...] = ("flapsim.scenarios.flight", "flapsim.scenarios.swim")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named evaluation task."""
+
+    name: str
+    family: str
+    """``flight`` or ``swim``."""
+    summary: str
+    """One line for ``flapsim eval --list``."""
+    runner: Callable[[Scenario, EvalOptions], dict]
+    params: dict = field(default_factory=dict)
+    """The scenario's own settings, passed to the runner (and reported)."""
+    in_all: bool = True
+    """Part of ``--scenario all``."""
+
+
+@dataclass
+class EvalOptions:
+    """What every scenario run may use (from the command line)."""
+
+    db: str | None = None
+    """Flight: controller database (None: the bundled one)."""
+    method: str = "lwlr"
+    k: int | None = None
+    layers: str = "all"
+    """Swim: control layers (basic, cycle, all)."""
+    feathers: str = "rigid"
+    """Flight: feather model."""
+    plots_dir: str | None = None
+    video_dir: str | None = None
+    seed: int = 0
+    path_file: str | None = None
+    """A user's path file (the ``path`` scenario)."""
+    quick: bool = False
+    """Shorter variants (tests, smoke runs)."""
+    fps: float = 30.0
+    size: tuple[int, int] = (640, 480)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+_REGISTRY: dict[str, Scenario] = {}
+_LOADED = False
+
+
+def register(scenario: Scenario) -> Scenario:
+    """Add ``scenario`` (a name may be registered once)."""
+    if scenario.name in _REGISTRY and _REGISTRY[scenario.name] is not scenario:
+        raise ValueError(f"scenario {scenario.name!r} is registered twice")
+    _REGISTRY[scenario.name] = scenario
+    return scenario
+
+
+def load_all() -> None:
+    """Import every family module (each registers its scenarios); a family whose module
+    does not exist yet is skipped."""
+    global _LOADED
+    if _LOADED:
+        return
+    for mod in FAMILY_MODULES:
+        try:
+            importlib.import_module(mod)
+        except ModuleNotFoundError as exc:
+            if exc.name != mod:
+                raise
+    _LOADED = True
+
+
+def names(family: str | None = None, all_only: bool = False) -> list[str]:
+    """Registered scenario names (of one family), in registration order."""
+    load_all()
+    return [n for n, s in _REGISTRY.items()
+            if (family is None or s.family == family) and (not all_only or s.in_all)]
+
+
+def get(name: str) -> Scenario:
+    """The scenario called ``name``; a one-line error listing the names otherwise."""
+    load_all()
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise InputError(f"no scenario {name!r}; known: {', '.join(names())} "
+                         "(flapsim eval --list)") from None
+
+
+def run_scenario(name: str, options: EvalOptions) -> dict:
+    """Run one scenario; never raises for a failure of the run itself (see module doc)."""
+    sc = get(name)
+    t0 = time.perf_counter()
+    try:
+        out = dict(sc.runner(sc, options))
+    except FlapsimError as exc:
+        out = {"status": "failed", "ok": False, "reason": str(exc), "metrics": {}, "files": []}
+    out.setdefault("files", [])
+    out.setdefault("reason", "")
+    return {"scenario": name, "family": sc.family, "summary": sc.summary, **out,
+            "wall_s": time.perf_counter() - t0}
+
+
+@dataclass
+class EvalConfig:
+    """What :class:`EvalWorker` runs: ``names[i]`` for chunk ``[i, i + 1)``."""
+
+    names: list[str]
+    options: EvalOptions
+
+
+class EvalWorker:
+    """A :class:`~flapsim.parallel.ChunkExecutor` worker running scenarios by index."""
+
+    def __init__(self, config: EvalConfig) -> None:
+        self.config = config
+
+    def header(self) -> dict:
+        from flapsim import __version__
+
+        return {"flapsim_version": __version__, "options": self.config.options.to_dict()}
+
+    def run_chunk(self, start: int, stop: int) -> list[tuple[int, dict[str, Any]]]:
+        return [(i, run_scenario(self.config.names[i], self.config.options))
+                for i in range(start, stop)]
