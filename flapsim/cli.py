@@ -3,25 +3,56 @@
 Each command lives in ``flapsim/commands/<name>.py`` and defines ``HELP`` (one line),
 ``add_arguments(parser)`` and ``run(args) -> dict``. ``run`` prints a readable summary
 and returns the machine-readable result that ``--json PATH`` writes (atomically).
-Every command gets ``--json`` and ``--seed``. Errors that are the user's to fix
-(:class:`flapsim.errors.FlapsimError`) print one line and exit with status 2.
+Every command gets ``--json`` (``-``: stdout, the readable summary then goes to stderr)
+and ``--seed``. A module may also define ``SEED_HELP`` (say so when ``--seed`` changes
+nothing) and ``EXIT_STATUS`` (extra exit-status lines for its ``--help``).
+
+Before ``run``, :func:`flapsim.validate.check_outputs` checks every input file and output
+path the command declared with :mod:`flapsim.validate`'s helpers (numbers are checked by
+their argparse types while parsing), so nothing is simulated on arguments that would fail.
+
+Exit statuses (:data:`EXIT_STATUS`): 0 done; 1 some runs of a batch failed, or the system
+refused a write (disk full); 2 bad input or a diverged simulation, one line naming it;
+130 Ctrl-C, 143 SIGTERM (no partial file is left: outputs are written to a temporary file
+and renamed).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import json
 import logging
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 
 from flapsim import __version__
 from flapsim.errors import FlapsimError
+from flapsim.validate import add_output_arg, check_outputs, guard_gl
 
 # Order is the order ``flapsim --help`` lists them in.
 COMMANDS: tuple[str, ...] = ("fly", "train", "swim", "sweep", "modes", "creature", "animate",
                              "demo", "bench")
+
+
+#: Exit statuses every command shares (each command's ``--help`` lists them).
+EXIT_STATUS = """exit status:
+  0    done
+  2    bad input (a one-line message names it), or the simulation diverged
+  130  interrupted by Ctrl-C, 143 by SIGTERM (no partial output file is left)"""
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that temporary files are cleaned up (a
+    BaseException, like KeyboardInterrupt, so that ``except Exception`` does not catch it)."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler API
+    raise Terminated()
 
 
 class _Parser(argparse.ArgumentParser):
@@ -41,9 +72,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
         module = importlib.import_module(f"flapsim.commands.{name}")
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
-        p.add_argument("--json", metavar="PATH", help="write the results as JSON to PATH")
-        p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+        extra = getattr(module, "EXIT_STATUS", "")
+        epilog = EXIT_STATUS + ("\n" + extra if extra else "")
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP, epilog=epilog,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        add_output_arg(p, "--json", stdout=True,
+                       help="write the results as JSON to PATH ('-': to stdout)")
+        p.add_argument("--seed", type=int, default=0,
+                       help=getattr(module, "SEED_HELP", "random seed (default 0)"))
         module.add_arguments(p)
         p.set_defaults(_module=module)
     return parser
@@ -68,8 +104,12 @@ def _route_mujoco_warnings() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    guard_gl()  # before anything imports mujoco: a bad MUJOCO_GL must not break --help
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a one-line argparse error (status 2)
+        return exc.code if isinstance(exc.code, int) else 2
     if args.command is None:
         parser.print_help()
         return 2
@@ -77,21 +117,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
-    from flapsim.io import write_json
+    from flapsim.io import _jsonable, write_json
 
     _route_mujoco_warnings()
 
+    to_stdout = args.json == "-"
+    old_term = None
+    if threading.current_thread() is threading.main_thread():
+        old_term = signal.signal(signal.SIGTERM, _on_sigterm)
     t0 = time.perf_counter()
+    status = 0
     try:
-        result = args._module.run(args)
+        check_outputs(args)
+        # with --json -, stdout carries the JSON alone: the readable summary goes to stderr
+        with contextlib.redirect_stdout(sys.stderr) if to_stdout else contextlib.nullcontext():
+            result = args._module.run(args)
+        status = int(result.get("exit_status", 0) or 0) if isinstance(result, dict) else 0
         if args.json:
             result = dict(result)
             result.setdefault("command", args.command)
             result.setdefault("flapsim_version", __version__)
             result.setdefault("seed", args.seed)
             result.setdefault("wall_time_s", time.perf_counter() - t0)
-            write_json(args.json, result)
-            print(f"results written to {args.json}")
+            if to_stdout:
+                print(json.dumps(_jsonable(result), indent=2))
+            else:
+                write_json(args.json, result)
+                print(f"results written to {args.json}")
     except FlapsimError as exc:
         print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -99,7 +151,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         hint = "; run the same command again to resume" if args.command == "train" else ""
         print(f"flapsim {args.command}: interrupted{hint}", file=sys.stderr)
         return 130
-    return 0
+    except Terminated:
+        print(f"flapsim {args.command}: terminated (SIGTERM)", file=sys.stderr)
+        return 143
+    except OSError as exc:  # the system refused a read or write the checks could not foresee
+        what = f"{exc.strerror or exc}" + (f": {exc.filename}" if exc.filename else "")
+        print(f"flapsim {args.command}: error: {what}", file=sys.stderr)
+        return 1
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+    return status
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -11,10 +11,12 @@ from tqdm import tqdm
 from flapsim.fluid.coefficients import flat_plate
 from flapsim.fluid.flow import FlowField, Gust, Uniform
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
-from flapsim.sim.callbacks import DISPATCHER
 from flapsim.sim.loading import load_model
+from flapsim.sim.stepping import step
+from flapsim.validate import quantity
 
 HELP = "drop a plate through air and blow a gust at it: the force engine against hand-computed numbers"
+SEED_HELP = "accepted for uniformity; the demo is deterministic, --seed changes nothing"
 
 _XML = """<mujoco model="demo_plate"><option timestep="0.001"/><worldbody>
   <body name="plate" pos="0 0 20"><joint type="slide" axis="0 0 1"/>
@@ -23,16 +25,14 @@ _XML = """<mujoco model="demo_plate"><option timestep="0.001"/><worldbody>
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--mass", type=float, default=0.01, help="plate mass [kg] (default 0.01)")
-    p.add_argument("--side", type=float, default=0.2, help="plate side [m] (default 0.2)")
-    p.add_argument("--seconds", type=float, default=4.0, help="simulated time [s] (default 4)")
+    p.add_argument("--mass", type=quantity("mass"), default=0.01,
+                   help="plate mass [kg] (default 0.01)")
+    p.add_argument("--side", type=quantity("side"), default=0.2, help="plate side [m] (default 0.2)")
+    p.add_argument("--seconds", type=quantity("seconds"), default=4.0,
+                   help="simulated time [s] (default 4)")
 
 
 def run(args: argparse.Namespace) -> dict:
-    from flapsim.errors import InputError
-
-    if args.mass <= 0 or args.side <= 0 or args.seconds <= 0:
-        raise InputError("--mass, --side and --seconds must be > 0")
     h = args.side / 2
     model = load_model(_XML.format(h=h, m=args.mass), is_xml=True)
     data = mujoco.MjData(model)
@@ -49,8 +49,7 @@ def run(args: argparse.Namespace) -> dict:
     vz, vy = np.empty(n), np.empty(n)
     with forces.register(data):
         for i in tqdm(range(n), desc="demo", unit="step", leave=False):
-            mujoco.mj_step(model, data)
-            DISPATCHER.check(data)
+            step(model, data, what="the falling plate")  # divergence -> SimulationError
             vz[i], vy[i] = data.qvel[0], data.qvel[2]
     before_gust = -vz[int(0.45 * n)]
     result = {

@@ -4,6 +4,7 @@ floating height (optionally a video)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 
 import numpy as np
 
@@ -11,12 +12,16 @@ from flapsim.errors import InputError
 from flapsim.fluid.flow import FlowField, Source, Vortex
 from flapsim.swim.model import SwimmerParams
 from flapsim.swim.simulate import swim
+from flapsim.validate import add_input_arg, add_output_arg, quantity, vector
 
 HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate and floating height"
+SEED_HELP = "accepted for uniformity; swimming is deterministic, --seed changes nothing"
 
 
 def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
     """``n`` comma-separated finite numbers, or a one-line error naming ``what``."""
+    if isinstance(text, tuple):  # already parsed by the argument's type (flapsim.validate)
+        return text
     count = {2: "two", 3: "three", 4: "four"}.get(n, str(n))
     try:
         v = tuple(float(x) for x in text.split(","))
@@ -30,44 +35,49 @@ def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
 def add_target_arguments(p: argparse.ArgumentParser) -> None:
     """What to steer for (shared with ``flapsim sweep``)."""
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--target", metavar="X,Y",
+    g.add_argument("--target", metavar="X,Y", type=vector("position", 2),
                    help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke")
-    g.add_argument("--path", metavar="FILE",
-                   help="follow a path: a text file of 'x, y' points [m], one per line")
-    g.add_argument("--figure8", type=float, metavar="R",
+    add_input_arg(g, "--path", metavar="FILE",
+                  help="follow a path: a text file of 'x, y' points [m], one per line")
+    g.add_argument("--figure8", type=quantity("radius"), metavar="R",
                    help="follow a figure of eight of loop radius R [m] (>= ~4 m: the crawl's "
                         "turning circle is ~3.5 m)")
     g.add_argument("--moving-target", metavar="X,Y,VX,VY",
+                   type=vector(("position", "position", "velocity", "velocity"), 4),
                    help="swim after a point starting at X,Y [m] moving at VX,VY [m/s]")
-    g.add_argument("--heading", type=float, metavar="DEG",
+    g.add_argument("--heading", type=quantity("angle_deg"), metavar="DEG",
                    help="hold this heading [deg from +x towards +y] (default: hold the start "
                         "heading)")
-    p.add_argument("--lookahead", type=float, default=2.0,
+    p.add_argument("--lookahead", type=quantity("lookahead"), default=2.0,
                    help="path following: steer at the point this far along the path [m]")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--stroke", default="breaststroke",
-                   help="breaststroke, crawl, treading, or a stroke .toml file (default breaststroke)")
-    p.add_argument("--seconds", type=float, default=20.0, help="simulated time [s] (default 20)")
-    p.add_argument("--rate", type=float, default=None,
+    add_input_arg(p, "--stroke", may_be_name=True, default="breaststroke",
+                  help="breaststroke, crawl, treading, or a stroke .toml file (default breaststroke)")
+    p.add_argument("--seconds", type=quantity("seconds"), default=20.0,
+                   help="simulated time [s] (default 20)")
+    p.add_argument("--rate", type=quantity("rate"), default=None,
                    help="stroke rate [cycles/s] (default: the stroke file's)")
-    p.add_argument("--density", type=float, default=None,
+    p.add_argument("--density", type=quantity("density"), default=None,
                    help="water density [kg/m^3] (default 1025, the paper's 91 kg buoyancy)")
-    p.add_argument("--lungs", type=float, default=None,
+    p.add_argument("--lungs", type=quantity("lungs"), default=None,
                    help="extra lung volume [L] (default 3, the paper's floater)")
-    p.add_argument("--friction", type=float, default=None,
+    p.add_argument("--friction", type=quantity("friction"), default=None,
                    help="skin-friction coefficient eta [N s/m^3] (default 2)")
     p.add_argument("--buoyancy", choices=("exact", "linear"), default="exact",
                    help="submerged fraction: exact spherical cap or the paper's linear rule")
-    p.add_argument("--r-min", type=float, default=0.0,
+    p.add_argument("--r-min", type=quantity("flow_ratio"), default=0.0,
                    help="swimmer-induced flow ratio rMin of the paper's eq. 5 (default 0: off)")
-    p.add_argument("--r-max", type=float, default=0.0,
+    p.add_argument("--r-max", type=quantity("flow_ratio"), default=0.0,
                    help="swimmer-induced flow ratio rMax of the paper's eq. 5 (default 0: off)")
-    p.add_argument("--current", default="0,0,0", help="uniform water current vx,vy,vz [m/s]")
+    p.add_argument("--current", default=(0.0, 0.0, 0.0), type=vector("current", 3),
+                   help="uniform water current vx,vy,vz [m/s]")
     p.add_argument("--source", action="append", default=[], metavar="X,Y,Z,Q",
+                   type=vector(("position",) * 3 + ("source",), 4),
                    help="add a point source at X,Y,Z of strength Q [m^3/s] (repeatable)")
     p.add_argument("--vortex", action="append", default=[], metavar="X,Y,GAMMA",
+                   type=vector(("position", "position", "circulation"), 3),
                    help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
     add_target_arguments(p)
     p.add_argument("--viewer", action="store_true",
@@ -77,28 +87,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-feedback", action="store_true",
                    help="run the basic stroke layer alone: ignore the stroke's feedback rules "
                         "(treading water then tips over)")
-    p.add_argument("--timestep", type=float, default=None, help="physics step [s] (default 0.004)")
-    p.add_argument("--video", metavar="PATH", nargs="?", const="swim.mp4", default=None,
-                   help="also write an mp4 video (default file swim.mp4)")
-    p.add_argument("--out", metavar="PATH",
+    p.add_argument("--timestep", type=quantity("timestep"), default=None,
+                   help="physics step [s] (default 0.004)")
+    add_output_arg(p, "--video", kinds=(".mp4",), renders=True, nargs="?", const="swim.mp4",
+                   default=None, help="also write an mp4 video (default file swim.mp4)")
+    add_output_arg(p, "--out", kinds=(".npz",),
                    help="write the track (.npz: time, com, head, muscle_power [SI], and "
                         "target_path, the path followed, if any)")
-    p.add_argument("--plot", metavar="PATH",
+    add_output_arg(p, "--plot", kinds=(".png",),
                    help="write a top view of the track (and the path/target) as PNG")
-    p.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
+    p.add_argument("--fps", type=quantity("fps"), default=30.0, help="video frames per second (default 30)")
 
 
 def _flow(args: argparse.Namespace) -> FlowField:
     prims = []
     for s in args.source:
-        parts = [float(x) for x in s.split(",")]
-        if len(parts) != 4:
-            raise InputError(f"--source needs X,Y,Z,Q, got {s!r}")
+        parts = _vec(s, "--source X,Y,Z,Q", 4)
         prims.append(Source(parts[:3], parts[3], core=0.3))
     for s in args.vortex:
-        parts = [float(x) for x in s.split(",")]
-        if len(parts) != 3:
-            raise InputError(f"--vortex needs X,Y,GAMMA, got {s!r}")
+        parts = _vec(s, "--vortex X,Y,GAMMA", 3)
         prims.append(Vortex((parts[0], parts[1], 0.0), (0, 0, 1), parts[2], core=0.3))
     return FlowField(prims)
 
@@ -125,8 +132,6 @@ def target_from_args(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> dict:
-    if not (0 < args.seconds <= 3600):
-        raise InputError(f"--seconds must be in (0, 3600], got {args.seconds}")
     kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max}
     for name, key in (("density", "water_density"), ("lungs", "lung_volume_l"),
                       ("friction", "friction"), ("timestep", "timestep")):
@@ -134,12 +139,6 @@ def run(args: argparse.Namespace) -> dict:
             kw[key] = getattr(args, name)
     params = SwimmerParams(**kw)
     video = args.video
-    if video is not None and not str(video).endswith(".mp4"):
-        raise InputError(f"--video must name an .mp4 file, got {video!r}")
-    if args.out and not str(args.out).endswith(".npz"):
-        raise InputError(f"--out must name an .npz file, got {args.out!r}")
-    if args.plot and not str(args.plot).endswith(".png"):
-        raise InputError(f"--plot must name a .png file, got {args.plot!r}")
     target = target_from_args(args)
     flow = _flow(args)
     current = _vec(args.current, "--current", 3)
@@ -161,14 +160,25 @@ def run(args: argparse.Namespace) -> dict:
         target = marker if steers and not args.no_feedback else None
         swimmer = Swimmer(params, flow)
         viewer = SwimViewer(swimmer, marker)
-    try:
-        result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
-                      current=current, video_fps=args.fps if video else 0.0,
-                      progress=viewer is None, feedback=not args.no_feedback, target=target,
-                      swimmer=swimmer, control_hook=viewer)
-    finally:
-        if viewer is not None:
-            viewer.close()
+    with contextlib.ExitStack() as stack:
+        on_frame = None
+        if video:  # frames stream into a temporary file, renamed only when the swim succeeded
+            import imageio.v2 as imageio
+
+            from flapsim.io import atomic_path
+
+            tmp = stack.enter_context(atomic_path(video, suffix=".mp4"))
+            writer = stack.enter_context(imageio.get_writer(tmp, fps=args.fps, codec="libx264",
+                                                            quality=7))
+            on_frame = writer.append_data
+        try:
+            result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
+                          current=current, video_fps=args.fps if video else 0.0,
+                          progress=viewer is None, feedback=not args.no_feedback, target=target,
+                          swimmer=swimmer, control_hook=viewer, on_frame=on_frame)
+        finally:
+            if viewer is not None:
+                viewer.close()
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
     if args.plot:
@@ -192,14 +202,6 @@ def run(args: argparse.Namespace) -> dict:
                  muscle_power=result.power, **extra)
         s["out"] = str(args.out)
     if video:
-        import imageio.v2 as imageio
-
-        from flapsim.io import atomic_path
-
-        with atomic_path(video, suffix=".mp4") as tmp:
-            with imageio.get_writer(tmp, fps=args.fps, codec="libx264", quality=7) as w:
-                for frame in result.frames:
-                    w.append_data(frame)
         s["video"] = str(video)
     print(f"{s['stroke']}: {s['seconds']:.1f} s simulated in {s['wall_s']:.1f} s "
           f"({s['realtime_factor']:.1f}x real time)")

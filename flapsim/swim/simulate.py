@@ -192,10 +192,12 @@ def swim(
     feedback: bool = True,
     target: Heading | Point | Path | None = None,
     control_hook: Callable[[Swimmer, BasicStrokeLayer], bool] | None = None,
+    on_frame: Callable[[np.ndarray], None] | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
-    ``video_fps`` > 0 also renders frames (offscreen) into ``result.frames``.
+    ``video_fps`` > 0 also renders frames (offscreen) into ``result.frames``, or hands
+    each to ``on_frame(rgb)`` (e.g. a video writer) so that memory stays bounded.
     ``feedback``: run the stroke's feedback rules (its ``[perturb.*]`` sections, if
     any) at 50 Hz; False = the basic stroke layer alone.
     ``target``: steer for a heading, a point or along a path (flapsim.swim.targets);
@@ -255,7 +257,10 @@ def swim(
                 if renderer is not None and i % frame_every == 0:
                     cam.lookat[:] = d.subtree_com[pelvis]
                     renderer.update_scene(d, camera=cam)
-                    frames.append(renderer.render())
+                    if on_frame is not None:
+                        on_frame(renderer.render())
+                    else:
+                        frames.append(renderer.render())
                 if i == nsteps:
                     break
                 if i % control_every == 0:
@@ -289,9 +294,15 @@ def swim(
                       feedback=fb.summary() if fb is not None else None, target=target)
 
 
+#: MuJoCo's divergence warnings: it resets a diverged state (finite again) and only counts
+_BAD = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                         mujoco.mjtWarning.mjWARN_BADQACC)]
+
+
 def _check(m: mujoco.MjModel, d: mujoco.MjData) -> None:
     DISPATCHER.check(d)
-    if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
+    if (any(d.warning[w].number for w in _BAD)
+            or not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel)))):
         raise SimulationError(
             f"the swimmer diverged at t={d.time:.3f} s: lower the timestep (now "
             f"{m.opt.timestep:g} s) or the PD gains"
