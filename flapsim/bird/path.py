@@ -188,6 +188,15 @@ class PathTarget:
     """Running integrals of (speed, height) errors."""
     desired: list = field(default_factory=list)
     """(position, quaternion) asked at the end of each wingbeat, for the evaluation."""
+    anchor: str = "start"
+    """Where the recovery curve starts: ``start`` (the bird's position and velocity when the
+    wingbeat begins, as the paper says; set by :meth:`begin`) or ``predicted`` (where the
+    reference wingbeat P0 would end)."""
+    _start: tuple | None = None
+
+    def begin(self, position: np.ndarray, velocity: np.ndarray) -> None:
+        """The bird's trunk position and centre-of-mass velocity as the wingbeat begins."""
+        self._start = (np.asarray(position, float).copy(), np.asarray(velocity, float).copy())
 
     @property
     def done(self) -> bool:
@@ -196,7 +205,12 @@ class PathTarget:
 
     def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
         dt = e0.duration
-        p, v = e0.trunk_pos, e0.com_vel
+        if self.anchor == "start" and self._start is not None:
+            p, v = self._start
+            t_end = dt  # the curve starts now; the wingbeat ends dt later on it
+        else:
+            p, v = e0.trunk_pos, e0.com_vel
+            t_end = dt
         speed_now = float(np.linalg.norm(v))
         # progress never goes back, and looks at most a few seconds ahead (self-crossing paths)
         self.s = self.path.closest(p, self.s - 1.0, self.s + 3.0 * max(speed_now, self.speed))
@@ -204,7 +218,7 @@ class PathTarget:
         p_t = self.path.point(s_t)
         t_t = self.path.tangent(s_t) * max(speed_now, 1.0)
         T = self.lookahead_s
-        pd, vd, ad = hermite(p, v, p_t, t_t, T, min(dt, T))
+        pd, vd, ad = hermite(p, v, p_t, t_t, T, min(t_end, T))
         e_v = self.speed - speed_now
         e_z = float(self.path.point(self.s)[2] - p[2])
         # anti-windup: the integrals may ask at most 2 m/s of speed and 1 m/s of climb
@@ -234,10 +248,11 @@ def _attitude_quat(heading: float, pitch: float, bank_left: float) -> np.ndarray
 
 
 def quat_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """|log(a^-1 b)|: the rotation angle between two unit quaternions, rad (the paper's
-    geodesic distance, [Lee 2008])."""
+    """||log(a^-1 b)||, the paper's geodesic distance between orientations (eq. 13-14,
+    [Lee 2008]): the quaternion logarithm's norm, which is HALF the rotation angle between
+    them, rad (Lee's exp(v) = (cos|v|, sin|v| v/|v|) rotates by 2|v|)."""
     d = abs(float(np.clip(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0)))
-    return float(2.0 * np.arccos(d))
+    return float(np.arccos(d))
 
 
 def path_metrics(path: FlightPath, positions: np.ndarray, quats: np.ndarray,
@@ -277,33 +292,3 @@ def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float) -> None:
     d.qpos[3:7] = q
     d.qvel[0:3] = speed * t
     mujoco.mj_forward(fl.model, d)
-
-
-def fly_path(controller, target: PathTarget, max_wingbeats: int, progress: bool = False,
-             record: bool = False):
-    """Follow ``target.path`` under ``controller`` until the closest point reaches its end
-    (or ``max_wingbeats``); returns the :class:`~flapsim.bird.controller.ControlledFlight`."""
-    import time
-
-    from flapsim.bird.controller import ControlledFlight
-
-    fl = controller.flight
-    start = fl.data.qpos[0:3].copy()
-    steps = []
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=round(target.path.length, 1), desc="path", unit="m")
-    t0 = time.perf_counter()
-    try:
-        for _ in range(max_wingbeats):
-            steps.append(controller.choose(target, record=record))
-            if bar is not None:
-                bar.update(round(target.s, 1) - bar.n)
-            if target.done:
-                break
-    finally:
-        if bar is not None:
-            bar.close()
-    return ControlledFlight(steps, start, time.perf_counter() - t0)

@@ -142,6 +142,10 @@ class TaskResult:
     wall_s: float
     collisions: int = 0
     push_log: list = field(default_factory=list)
+    model_hash: str = ""
+    k: int | None = None
+    """Neighbours of the controller's regression."""
+    database_samples: int | None = None
 
     @property
     def ok(self) -> bool:
@@ -182,7 +186,9 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         start_on_path(fl, ctl.P0, task.path, task.speed)
         target = PathTarget(trim, task.path, speed=task.speed)
-        return _fly(fl, ctl, target, task, record, progress)
+        r = _fly(fl, ctl, target, task, record, progress)
+        r.model_hash, r.k, r.database_samples = fl.dove.hash(), ctl.regressor.k, ctl.regressor.n
+        return r
     finally:
         if own:
             fl.close()
@@ -215,6 +221,7 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
                 push = cycle.Push(fl.dove.trunk, force, int(round(ps.duration_s / dt)))
                 push_log.append({"t": float(d.time), "newtons": ps.newtons,
                                  "direction": ps.direction, "force": force.tolist()})
+            target.begin(d.qpos[0:3], v_prev)
             try:
                 step = ctl.choose(target, record=record, push=push)
             except SimulationError as exc:

@@ -176,44 +176,54 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
 
 def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     """Follow ``--path`` under the learned controller; the paper's Ep, Er, Eo, Ef."""
-    from flapsim.bird.controller import load_controller, trim_of_base_flight
-    from flapsim.bird.flight import DoveFlight
-    from flapsim.bird.model import Dove
-    from flapsim.bird.path import PathTarget, fly_path, path_metrics, start_on_path
+    from flapsim.bird.tasks import Task, fly_task
 
     path = args.flight_path
-    dove = Dove.load()
-    fl = DoveFlight(dove, table=cfg.table)
-    try:
-        ctl = load_controller(fl, args.db, method=args.method, k=args.k)
-        trim = trim_of_base_flight(fl, ctl.P0, cfg)
-        start_on_path(fl, ctl.P0, path, cfg.speed)
-        target = PathTarget(trim, path, speed=cfg.speed)
-        flight = fly_path(ctl, target, args.wingbeats, progress=True,
-                          record=bool(args.video or args.out))
-    finally:
-        fl.close()
-    quats = np.array([s.end.trunk_quat for s in flight.steps])
-    m = path_metrics(path, flight.positions[1:], quats, target.desired)
-    completed = bool(target.done)
+    task = Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats)
+    r = fly_task(task, args.db, method=args.method, k=args.k, progress=True,
+                 record=bool(args.video or args.out))
+    m = r.metrics
+    completed = r.status == "completed"
     result = {
         "controller": "learned", "path": args.path, "path_length": path.length,
-        "wingbeats": len(flight.steps), "completed": completed,
-        "progress": target.s, "simulated_s": flight.simulated_s,
-        "model_hash": dove.hash(), "method": args.method, "k": ctl.regressor.k,
-        "database_samples": ctl.regressor.n,
+        "completed": completed, "status": r.status, "reason": r.reason,
+        "progress": m["progress_m"], "model_hash": r.model_hash, "method": args.method,
+        "k": r.k, "database_samples": r.database_samples,
         "db": str(args.db) if args.db else "bundled", **m,
-        "real_time_factor": flight.simulated_s / flight.wall_time if flight.wall_time else None,
     }
     print(f"dove, learned controller along {args.path} ({path.length:.1f} m): "
-          f"{'completed' if completed else f'{target.s:.1f} m reached'} in {len(flight.steps)} "
-          f"wingbeats ({flight.simulated_s:.2f} s simulated)")
+          f"{'completed' if completed else r.status + ': ' + r.reason} in {m['wingbeats']} "
+          f"wingbeats ({m['simulated_s']:.2f} s simulated)")
     print(f"  distance to the path: mean {m['Ef_per_wingbeat']:.2f} m, largest "
           f"{m['max_path_distance']:.2f} m")
     print(f"  per wingbeat: Ep {m['Ep_per_wingbeat']:.3f} m, Er {m['Er_per_wingbeat']:.3f} rad, "
           f"Eo {m['Eo_per_wingbeat']:.3f} rad, Ef {m['Ef_per_wingbeat']:.3f} m")
-    _write_outputs(args, dove, flight, result, width, height, path_points=path.points)
+    _write_task_outputs(args, r, result, width, height, path_points=path.points)
     return result
+
+
+def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, height: int,
+                        **extra: np.ndarray) -> None:
+    """``--out`` / ``--video`` of a flown task (:class:`~flapsim.bird.tasks.TaskResult`)."""
+    from flapsim.bird.model import Dove
+    from flapsim.io import save_npz
+
+    if args.out:
+        save_npz(args.out, positions=r.positions, quats=r.quats, times=r.times,
+                 steering_deg=r.steering_deg, qpos=r.qpos, model_hash=np.array(r.model_hash),
+                 seed=np.array(args.seed), **extra)
+        print(f"trajectory written to {args.out}")
+        result["out"] = args.out
+    if args.video:
+        from flapsim.render import ChaseCamera, render_video
+
+        model = Dove.load().model
+        dt = float(model.opt.timestep)
+        stride = max(1, int(round(1.0 / (args.fps * dt))))
+        n = render_video(model, r.qpos[::stride], args.video, fps=1.0 / (stride * dt),
+                         camera=ChaseCamera("trunk"), width=width, height=height)
+        print(f"video written to {args.video} ({n} frames)")
+        result["video"] = args.video
 
 
 def _write_outputs(args: argparse.Namespace, dove, flight, result: dict, width: int, height: int,

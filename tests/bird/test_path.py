@@ -88,11 +88,13 @@ def test_bank_balances_the_centrifugal_force():
     assert bank_for_turn(np.array([v, 0, 0]), np.array([0.0, -v * v / r, 0])) == pytest.approx(-bank)
 
 
-def test_quaternion_distance_is_the_rotation_angle():
+def test_quaternion_distance_is_the_log_norm_half_the_rotation_angle():
+    # the paper's ||log(q_a^-1 q_b)|| (Lee 2008: exp(v) = (cos|v|, sin|v| v/|v|)) is half the
+    # angle of the rotation between the two orientations
     q = np.array([1.0, 0, 0, 0])
     r = np.empty(4)
     mujoco.mju_axisAngle2Quat(r, np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8]), 0.7)
-    assert quat_distance(q, r) == pytest.approx(0.7, abs=1e-9)
+    assert quat_distance(q, r) == pytest.approx(0.35, abs=1e-9)
     assert quat_distance(r, -r) == pytest.approx(0.0, abs=1e-7)  # q and -q: the same rotation
 
 

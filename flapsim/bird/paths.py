@@ -1,0 +1,78 @@
+"""Path shapes for the flight scenarios (the flight paper's sec. 7), as point lists that
+:class:`~flapsim.bird.path.FlightPath` turns into splines. Metres; the bird starts at the
+first point, flying along the first tangent."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from flapsim.bird.path import FlightPath
+
+START_HEIGHT = 10.0
+"""Height of the paths' start, m (the cruise start)."""
+
+
+def figure8(lobe_m: float = 35.0, rise_m: float = 3.0, n: int = 160) -> FlightPath:
+    """A figure of eight ``2 lobe_m`` long and ``lobe_m`` wide, starting at its crossing
+    heading +x; it rises ``rise_m`` on the first (left-turning) lobe and comes back down
+    on the second: ascending and descending turns (``rise_m = 0``: level)."""
+    t = np.linspace(0.0, 2 * np.pi, n)
+    z = START_HEIGHT + rise_m * np.sin(t) ** 2 * np.sign(np.sin(t))
+    return FlightPath(np.stack([2 * lobe_m * np.sin(t), lobe_m * np.sin(2 * t), z], 1))
+
+
+def sinusoid(amplitude_m: float = 4.0, wavelength_m: float = 40.0, waves: float = 4.0,
+             n_per_wave: int = 24) -> FlightPath:
+    """Rapid side-to-side turns: y = A sin(2 pi x / wavelength), level (smallest turn radius
+    wavelength^2 / (4 pi^2 A))."""
+    x = np.linspace(0.0, waves * wavelength_m, int(waves * n_per_wave) + 1)
+    y = amplitude_m * np.sin(2 * np.pi * x / wavelength_m)
+    return FlightPath(np.stack([x, y, np.full_like(x, START_HEIGHT)], 1))
+
+
+def inclined_circle(radius_m: float = 3.6, incline_deg: float = 0.0, turns: float = 1.25,
+                    n_per_turn: int = 48) -> FlightPath:
+    """A circle of ``radius_m`` in a plane tilted ``incline_deg`` about the start heading's
+    axis (+x), turning left from the start: the path climbs on one side and descends on the
+    other, steepest (``incline_deg``) a quarter turn from the start."""
+    t = np.linspace(0.0, 2 * np.pi * turns, int(turns * n_per_turn) + 1)
+    x = radius_m * np.sin(t)
+    y = radius_m * (1.0 - np.cos(t))
+    a = np.radians(incline_deg)
+    # tilt about the x axis: y' = y cos a, z' = y sin a
+    return FlightPath(np.stack([x, y * np.cos(a), START_HEIGHT + y * np.sin(a)], 1))
+
+
+def straight(length_m: float = 40.0, heading_deg: float = 0.0) -> FlightPath:
+    """A level straight line."""
+    h = np.radians(heading_deg)
+    s = np.linspace(0.0, length_m, 5)
+    return FlightPath(np.stack([s * np.cos(h), s * np.sin(h), np.full_like(s, START_HEIGHT)], 1))
+
+
+def forest_path() -> FlightPath:
+    """The forest flight (paper: 263 m through a 50 x 50 x 15 m wood with climbs, glides and
+    spiral turns): a closed-ish tour of the 50 m square at 4-11 m height, with a rising
+    spiral, a gliding descent and turns both ways, 263 m long (scaled to it exactly)."""
+    pts = np.array([
+        [-20.0, -20.0, 6.0], [-5.0, -21.0, 6.5], [10.0, -18.0, 7.5], [19.0, -8.0, 8.5],
+        [16.0, 5.0, 9.5], [5.0, 8.0, 10.0], [-6.0, 3.0, 10.5], [-4.0, -8.0, 11.0],
+        [8.0, -6.0, 10.5], [12.0, 6.0, 9.5], [6.0, 17.0, 8.5], [-8.0, 20.0, 7.5],
+        [-19.0, 12.0, 6.5], [-20.0, -2.0, 5.5], [-12.0, -12.0, 5.0], [0.0, -13.0, 5.0],
+    ])
+    p = FlightPath(pts)
+    scale = 263.0 / p.length
+    c = pts.mean(axis=0) * np.array([1.0, 1.0, 0.0])
+    scaled = (pts - c) * np.array([scale, scale, 1.0]) + c
+    # the horizontal scale keeps the heights (and so the climb angles flatten a little)
+    return FlightPath(scaled)
+
+
+def perturbed_copy(path: FlightPath, offset_m: np.ndarray, jitter_m: float,
+                   rng: np.random.Generator) -> FlightPath:
+    """A follower's path (the paper's flocks): the leader's points moved by ``offset_m`` and
+    each by a random displacement of at most ``jitter_m`` in a random direction."""
+    pts = path.points + np.asarray(offset_m, float)
+    d = rng.normal(size=pts.shape)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return FlightPath(pts + d * rng.uniform(0.0, jitter_m, size=(len(pts), 1)))

@@ -1,0 +1,315 @@
+"""The flight paper's evaluation suite (its sec. 7) as scenarios of the shared registry.
+
+Every scenario flies the learned controller (``options.db``, default the bundled
+database) along a path with :func:`flapsim.bird.tasks.fly_task` and reports the paper's
+Ep, Er, Eo, Ef per wingbeat, whether the bird got lost, and the scenario's own numbers
+(collisions, steering range, the push table, ...). Plots (``options.plots_dir``): the
+path against the flown trajectory in 3D and the metrics per wingbeat; videos
+(``options.video_dir``): a chase camera.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from flapsim.scenarios import EvalOptions, Scenario, register
+
+PUSH_FORCES_N = (3.0, 6.0, 8.0, 10.0, 12.0)
+"""The paper pushed with 3-12 N (its Fig. 16); it withstood up to 8 N."""
+PUSH_TUBE_M = 10.0
+"""A push of 8 N for 0.1 s changes a 0.17 kg dove's velocity by 4.7 m/s (two thirds of its
+speed): it is carried metres off whatever it does, so surviving means staying within this
+tube, reaching the path's end and being back on it (:data:`PUSH_BACK_M`)."""
+PUSH_BACK_M = 1.5
+LEFT_PLUCKS = {"plucked-3": (2, 5, 8), "plucked-4": (2, 5, 7, 8)}
+"""Primaries plucked on the left wing, counted from the outermost (the paper's Fig. 15)."""
+N_PRIMARIES = 10
+
+
+def primary_name(side: str, from_outermost: int) -> str:
+    """The model's name of the ``from_outermost``-th primary (1 = outermost = p10)."""
+    return f"{side}_p{N_PRIMARIES + 1 - from_outermost}"
+
+
+# -- shared helpers -------------------------------------------------------------------------
+
+def _summary(r) -> dict:
+    keep = ("Ep_per_wingbeat", "Er_per_wingbeat", "Eo_per_wingbeat", "Ef_per_wingbeat",
+            "Ep", "Er", "Eo", "Ef", "max_path_distance", "wingbeats", "simulated_s", "progress_m",
+            "path_length_m", "collisions", "steering_range_deg", "elevation_range_deg",
+            "real_time_factor", "min_tree_clearance")
+    return {k: r.metrics[k] for k in keep if k in r.metrics}
+
+
+def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
+    from flapsim.bird.tasks import fly_task
+
+    r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=bool(opt.video_dir))
+    files = _outputs(sc, opt, task, r, tag)
+    return r, files
+
+
+def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:
+    files: list[str] = []
+    stem = sc.name + (f"-{tag}" if tag else "")
+    if opt.plots_dir:
+        from flapsim.scenarios.plots import flight_plot
+
+        out = Path(opt.plots_dir) / f"{stem}.png"
+        flight_plot(task.path, r, out, title=f"{stem}: {r.status}", forest=task.forest)
+        files.append(str(out))
+    if opt.video_dir and r.qpos is not None and len(r.qpos):
+        from flapsim.bird.model import Dove
+        from flapsim.render import ChaseCamera, render_video
+
+        model = Dove.load().model
+        dt = float(model.opt.timestep)
+        stride = max(1, int(round(1.0 / (opt.fps * dt))))
+        out = Path(opt.video_dir) / f"{stem}.mp4"
+        render_video(model, r.qpos[::stride], out, fps=1.0 / (stride * dt),
+                     camera=ChaseCamera("trunk"), width=opt.size[0], height=opt.size[1])
+        files.append(str(out))
+    return files
+
+
+def _result(r, files: list[str], **extra) -> dict:
+    return {"status": r.status, "ok": r.ok, "reason": r.reason, "metrics": {**_summary(r), **extra},
+            "files": files}
+
+
+# -- path scenarios -------------------------------------------------------------------------
+
+def run_path(sc: Scenario, opt: EvalOptions) -> dict:
+    """Follow ``sc.params['shape']`` (a :mod:`flapsim.bird.paths` function and its
+    arguments), or the user's ``options.path_file``."""
+    from flapsim.bird import paths
+    from flapsim.bird.path import load_path
+    from flapsim.bird.tasks import Task
+
+    p = dict(sc.params)
+    if p.get("shape") == "file":
+        if not opt.path_file:
+            from flapsim.errors import InputError
+
+            raise InputError("the path scenario needs a path file: flapsim eval --path FILE")
+        path = load_path(opt.path_file)
+    else:
+        shape = getattr(paths, p["shape"])
+        args = dict(p.get("args", {}))
+        if opt.quick and "quick_args" in p:
+            args.update(p["quick_args"])
+        path = shape(**args)
+    task = Task(path, wind=tuple(p.get("wind", (0.0, 0.0, 0.0))), flow=_flow(p.get("flow", ())),
+                plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0))
+    r, files = _fly(sc, opt, task)
+    extra = {}
+    if "capture_steering_deg" in p:
+        extra["capture_steering_range_deg"] = capture_steering_range()
+    return _result(r, files, **extra)
+
+
+def _flow(spec) -> tuple:
+    from flapsim.fluid import flow
+
+    return tuple(getattr(flow, kind)(**kw) for kind, kw in spec)
+
+
+def capture_steering_range() -> list[float]:
+    """Smallest and largest steering per wingbeat in the bundled capture set, deg."""
+    from flapsim.bird.capture import DATA_FILE, load_capture
+
+    cap = load_capture(DATA_FILE)
+    return [float(np.min(cap.steering_deg)), float(np.max(cap.steering_deg))]
+
+
+# -- pushes ---------------------------------------------------------------------------------
+
+def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
+    """Level straight flight pushed once at 1 s, for each force of the table; survived =
+    never farther than :data:`PUSH_TUBE_M` from the 60 m path, and back within
+    :data:`PUSH_BACK_M` of it at its end."""
+    from flapsim.bird import paths
+    from flapsim.bird.tasks import PushSpec, Task, fly_task
+
+    direction = sc.params["direction"]
+    forces = (8.0,) if opt.quick else PUSH_FORCES_N
+    table, files, worst = [], [], None
+    for f in forces:
+        task = Task(paths.straight(40.0 if opt.quick else 60.0),
+                    pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M)
+        r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=bool(opt.video_dir))
+        files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
+        back = task.path.distance(r.positions[-1])
+        survived = r.ok and back <= PUSH_BACK_M
+        table.append({"newtons": f, "status": r.status, "survived": survived,
+                      "max_path_distance": r.metrics.get("max_path_distance"),
+                      "final_path_distance": back,
+                      "reason": r.reason or ("" if survived else f"ended {back:.1f} m off the path")})
+        if not survived and worst is None:
+            worst = f
+    survived_8 = all(row["survived"] for row in table if row["newtons"] <= 8.0)
+    strongest = max([row["newtons"] for row in table if row["survived"]], default=0.0)
+    return {"status": "completed" if survived_8 else "lost", "ok": survived_8,
+            "reason": "" if survived_8 else f"lost at {worst:g} N",
+            "metrics": {"direction": direction, "strongest_survived_N": strongest,
+                        "first_lost_N": worst, "table": table}, "files": files}
+
+
+# -- flock ----------------------------------------------------------------------------------
+
+def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
+    """A leader on a path and followers on perturbed copies of it (the paper: control points
+    moved randomly within 1 m), each flown by its own controller; collisions between birds
+    are trunks closer than one span (0.51 m) at the same instant."""
+    from flapsim.bird import paths
+    from flapsim.bird.tasks import Task, fly_task
+
+    p = sc.params
+    rng = np.random.default_rng([opt.seed, 7])
+    leader = paths.figure8(**(p["quick_args"] if opt.quick else p["args"]))
+    birds = p["birds"]
+    offsets = p["offsets"][:birds]
+    results, files, tracks = [], [], []
+    for i, off in enumerate(offsets):
+        path = leader if i == 0 else paths.perturbed_copy(leader, off, p["jitter_m"], rng)
+        task = Task(path)
+        r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=True)
+        results.append(r)
+        tracks.append(_track(r))
+        files += _outputs(sc, opt, task, r, tag=f"bird{i}")
+    sep = min_separation(tracks)
+    collided = bool(sep < p["collision_m"])
+    ok = all(r.ok for r in results) and not collided
+    lost = [i for i, r in enumerate(results) if not r.ok]
+    reason = "; ".join(([f"bird(s) {lost} lost"] if lost else [])
+                       + ([f"birds came {sep:.2f} m close"] if collided else []))
+    return {"status": "completed" if ok else "lost", "ok": ok, "reason": reason,
+            "metrics": {"birds": len(results), "min_separation_m": sep, "collisions": int(collided),
+                        "Ef_per_wingbeat": float(np.mean([r.metrics.get("Ef_per_wingbeat", np.nan)
+                                                          for r in results])),
+                        "birds_lost": len(lost)},
+            "files": files}
+
+
+def _track(r) -> tuple[np.ndarray, np.ndarray]:
+    """(times, positions) of every step (recorded) of a flown task."""
+    n = len(r.qpos)
+    t = r.times[0] + (np.arange(n) + 1) * (r.times[-1] - r.times[0]) / n
+    return t, r.qpos[:, 0:3]
+
+
+def min_separation(tracks: list[tuple[np.ndarray, np.ndarray]]) -> float:
+    """Smallest distance between any two birds at the same instant (interpolated onto the
+    shortest common time grid)."""
+    best = np.inf
+    for i in range(len(tracks)):
+        for j in range(i + 1, len(tracks)):
+            (ti, pi), (tj, pj) = tracks[i], tracks[j]
+            hi = min(ti[-1], tj[-1])
+            t = np.arange(max(ti[0], tj[0]), hi, 0.01)
+            if len(t) == 0:
+                continue
+            a = np.stack([np.interp(t, ti, pi[:, c]) for c in range(3)], 1)
+            b = np.stack([np.interp(t, tj, pj[:, c]) for c in range(3)], 1)
+            best = min(best, float(np.min(np.linalg.norm(a - b, axis=1))))
+    return best
+
+
+# -- forest ---------------------------------------------------------------------------------
+
+def make_forest(path, seed: int, n_trees: int = 60, clearance_m: float = 2.5):
+    """Trees on the 50 x 50 m ground around ``path``: random positions (seeded), each kept
+    ``clearance_m`` plus its crown from the path, heights 8-15 m."""
+    from flapsim.bird.tasks import Forest, Tree
+
+    rng = np.random.default_rng([seed, 263])
+    trees, tries = [], 0
+    while len(trees) < n_trees and tries < 20000:
+        tries += 1
+        x, y = rng.uniform(-25.0, 25.0, 2)
+        h = rng.uniform(8.0, 15.0)
+        tree = Tree(float(x), float(y), float(h), float(rng.uniform(0.15, 0.35)),
+                    float(rng.uniform(1.0, 2.5)))
+        probe = Forest((tree,), bird_radius_m=0.0)
+        if np.min(probe.clearance(path._pts)) > clearance_m:
+            trees.append(tree)
+    return Forest(tuple(trees))
+
+
+def run_forest(sc: Scenario, opt: EvalOptions) -> dict:
+    from flapsim.bird import paths
+    from flapsim.bird.tasks import Task
+
+    path = paths.forest_path()
+    forest = make_forest(path, opt.seed)
+    task = Task(path, forest=forest)
+    r, files = _fly(sc, opt, task)
+    return _result(r, files, trees=len(forest.trees))
+
+
+# -- registration ---------------------------------------------------------------------------
+
+def _register() -> None:
+    P = "run_path"
+    runners = {"run_path": run_path}
+    entries = [
+        ("figure8", "figure of eight, 35 m lobes, rising 3 m on one lobe and descending on the "
+         "other (the paper's Table I path)", P,
+         {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 3.0},
+          "quick_args": {"lobe_m": 25.0, "rise_m": 0.5}}),
+        ("figure8-level", "figure of eight, 35 m lobes, level", P,
+         {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 0.0},
+          "quick_args": {"lobe_m": 25.0}}),
+        ("sinusoid", "rapid side-to-side turns: y = 4 sin(2 pi x / 40 m), 4 waves (steering range "
+         "per wingbeat against the capture set's)", P,
+         {"shape": "sinusoid", "args": {}, "quick_args": {"waves": 1.0},
+          "capture_steering_deg": True}),
+    ]
+    for inc in (0, 15, 30, 45):
+        entries.append((f"climb-turn-{inc}", f"circle of radius 3.6 m inclined {inc} deg, 1.25 turns",
+                        P, {"shape": "inclined_circle", "args": {"incline_deg": float(inc)},
+                            "quick_args": {"turns": 0.5}, "tube_m": 2.0}))
+    for name, plucked in LEFT_PLUCKS.items():
+        entries.append((name, f"level figure of eight with primaries {plucked} (from the outermost) "
+                        "plucked on the left wing", P,
+                        {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 0.0},
+                         "quick_args": {"lobe_m": 25.0},
+                         "plucked": [primary_name("l", i) for i in plucked]}))
+    entries += [
+        ("wind-steady", "40 m straight with a steady 2 m/s crosswind from the right", P,
+         {"shape": "straight", "args": {"length_m": 40.0}, "quick_args": {"length_m": 20.0},
+          "wind": (0.0, 2.0, 0.0)}),
+        ("wind-breeze", "40 m straight in a breeze swinging 1.5 m/s side to side at 0.3 Hz", P,
+         {"shape": "straight", "args": {"length_m": 40.0}, "quick_args": {"length_m": 20.0},
+          "flow": [("Breeze", {"direction": (0.0, 1.0, 0.0), "amplitude": 1.5,
+                               "frequency": 0.3})]}),
+        ("wind-gusts", "40 m straight with 1-cosine gusts of 3 m/s (0.5 s) from the side and "
+         "from above", P,
+         {"shape": "straight", "args": {"length_m": 40.0}, "quick_args": {"length_m": 20.0},
+          "flow": [("Gust", {"direction": (0.0, 1.0, 0.0), "amplitude": 3.0, "start": 1.0,
+                             "duration": 0.5}),
+                   ("Gust", {"direction": (0.0, 0.0, -1.0), "amplitude": 3.0, "start": 3.0,
+                             "duration": 0.5})]}),
+    ]
+    for name, summary, runner, params in entries:
+        register(Scenario(name, "flight", summary, runners[runner], params))
+    for d in ("front", "back", "left", "right", "up", "down"):
+        register(Scenario(f"push-{d}", "flight", f"level flight pushed {d} at the trunk's centre of "
+                          f"mass for 0.1 s, {'/'.join(f'{f:g}' for f in PUSH_FORCES_N)} N",
+                          run_pushes, {"direction": d}))
+    register(Scenario("forest", "flight", "263 m through a 50 x 50 x 15 m wood of 60 trees: climbs, "
+                      "glides, turns both ways (collisions counted)", run_forest, {}))
+    register(Scenario("flock", "flight", "5 birds: a leader on a 30 m-lobe figure of eight and 4 "
+                      "followers on copies offset 2-3 m and perturbed within 1 m (no collisions)",
+                      run_flock,
+                      {"birds": 5, "jitter_m": 1.0, "collision_m": 0.51,
+                       "offsets": [(0, 0, 0), (0, 0, 2.5), (0, 0, -2.5), (0, 0, 5.0), (0, 0, -5.0)],
+                       "args": {"lobe_m": 30.0, "rise_m": 0.0},
+                       "quick_args": {"lobe_m": 25.0, "rise_m": 0.0}}))
+    register(Scenario("path", "flight", "a user's path file (flapsim eval --path FILE)", run_path,
+                      {"shape": "file"}, in_all=False))
+
+
+_register()
