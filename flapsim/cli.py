@@ -35,8 +35,8 @@ from flapsim.errors import FlapsimError
 from flapsim.validate import add_output_arg, check_outputs, guard_gl
 
 # Order is the order ``flapsim --help`` lists them in.
-COMMANDS: tuple[str, ...] = ("fly", "train", "swim", "sweep", "modes", "creature", "animate",
-                             "demo", "bench")
+COMMANDS: tuple[str, ...] = ("fly", "eval", "train", "swim", "sweep", "modes", "creature",
+                             "animate", "demo", "bench")
 
 
 #: Exit statuses every command shares (each command's ``--help`` lists them).

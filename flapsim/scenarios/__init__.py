@@ -14,7 +14,8 @@ A runner returns a JSON-able dict with at least::
 :class:`~flapsim.errors.FlapsimError` (bad database, diverged simulation) into a failed
 result with its one-line reason, so that one broken run never hides the others.
 :class:`EvalWorker` runs scenarios on :class:`flapsim.parallel.ChunkExecutor` (chunk i =
-the i-th name of its list), the same executor as training: local processes or Ray.
+the i-th (name, options) pair of its list), the same executor as training: local
+processes or Ray.
 """
 
 from __future__ import annotations
@@ -132,24 +133,23 @@ def run_scenario(name: str, options: EvalOptions) -> dict:
 
 
 @dataclass
-class EvalConfig:
-    """What :class:`EvalWorker` runs: ``names[i]`` for chunk ``[i, i + 1)``."""
+class RunsConfig:
+    """What :class:`EvalWorker` runs: ``runs[i] = (scenario name, options)`` for chunk
+    ``[i, i + 1)``."""
 
-    names: list[str]
-    options: EvalOptions
+    runs: list[tuple[str, EvalOptions]]
 
 
 class EvalWorker:
     """A :class:`~flapsim.parallel.ChunkExecutor` worker running scenarios by index."""
 
-    def __init__(self, config: EvalConfig) -> None:
+    def __init__(self, config: RunsConfig) -> None:
         self.config = config
 
     def header(self) -> dict:
         from flapsim import __version__
 
-        return {"flapsim_version": __version__, "options": self.config.options.to_dict()}
+        return {"flapsim_version": __version__, "runs": len(self.config.runs)}
 
     def run_chunk(self, start: int, stop: int) -> list[tuple[int, dict[str, Any]]]:
-        return [(i, run_scenario(self.config.names[i], self.config.options))
-                for i in range(start, stop)]
+        return [(i, run_scenario(*self.config.runs[i])) for i in range(start, stop)]

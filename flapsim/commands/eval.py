@@ -1,0 +1,283 @@
+"""``flapsim eval``: run evaluation scenarios (the flight paper's sec. 7 suite, the
+swimmer's tasks) in parallel, print a table like the paper's Table I, write JSON, plots
+and videos. ``--table1`` reproduces Table I itself: database sizes and neighbour counts."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from flapsim.errors import InputError
+from flapsim.validate import add_input_arg
+
+HELP = ("evaluate controllers on named scenarios (figure of eight, pushes, forest, flock, "
+        "swimming tasks, ...): metrics table, JSON, plots, videos")
+EXIT_STATUS = "  1    a scenario failed or its animal got lost (the table and JSON still say which)"
+SEED_HELP = "random seed of the scenarios that draw (forest trees, flock perturbations; default 0)"
+
+TABLE1_SIZES = (2000, 5000, 10000, 20000)
+TABLE1_K_PERCENT = (2.0, 1.0, 0.5, 0.3)
+DEFAULT_SCENARIO = "figure8-level"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scenario", default=None, metavar="NAME",
+                   help=f"scenario name, several comma-separated, or 'all' (default {DEFAULT_SCENARIO}; "
+                        "--list shows them)")
+    p.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    add_input_arg(p, "--path", metavar="FILE",
+                  help="fly a path file of yours (CSV with header x,y,z, or JSON list of [x,y,z])")
+    add_input_arg(p, "--db", metavar="DB", help="controller database (default: the bundled one)")
+    p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
+                   help="regression of the wingbeat controller (default lwlr; knn: the paper's)")
+    p.add_argument("--k", type=int, default=None, help="neighbours (default 0.5%% of the database)")
+    p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
+                   help="swimming scenarios: control layers (default all)")
+    p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
+                   help="flight scenarios: feather model (default rigid)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="parallel workers (default: one per CPU core, at most one per run)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local processes, or Ray actors (pip install 'flapsim[cluster]')")
+    p.add_argument("--address", default=None, help="Ray cluster to join")
+    p.add_argument("--plots", metavar="DIR", default=None,
+                   help="write a PNG per run: path against flown trajectory, metrics per wingbeat")
+    p.add_argument("--video", metavar="DIR", default=None, help="write an mp4 per run (chase camera)")
+    p.add_argument("--quick", action="store_true",
+                   help="short variants of every scenario (smoke runs; numbers not comparable)")
+    p.add_argument("--table1", action="store_true",
+                   help="reproduce the paper's Table I on --scenario (default figure8-level): "
+                        f"phase-1 databases of {'/'.join(map(str, TABLE1_SIZES))} samples (trained "
+                        "into --cache if missing, resumable) with k = 0.5%%, and k = "
+                        f"{'/'.join(f'{k:g}' for k in TABLE1_K_PERCENT)}%% on 10,000")
+    p.add_argument("--cache", metavar="DIR", default="table1_dbs",
+                   help="--table1: folder of the trained databases (default ./table1_dbs)")
+    p.add_argument("--sizes", default=None,
+                   help="--table1: database sizes to use instead of the paper's, comma-separated")
+
+
+def _dir(flag: str, value: str | None) -> str | None:
+    if value is None:
+        return None
+    p = Path(value)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{flag} {value} is a file; name a folder (it is created if missing)")
+    parent = p if p.exists() else p.parent
+    if not parent.exists():
+        raise InputError(f"{flag} {value}: folder {parent} does not exist (create it first)")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {value}: folder {parent} is not writable")
+    return str(p)
+
+
+def _names(args: argparse.Namespace) -> list[str]:
+    from flapsim import scenarios
+
+    if args.path:
+        if args.scenario not in (None, "path"):
+            raise InputError("--path flies your path file (scenario 'path'); drop --scenario")
+        return ["path"]
+    spec = args.scenario or DEFAULT_SCENARIO
+    if spec == "all":
+        return scenarios.names(all_only=True)
+    out = []
+    for name in (s.strip() for s in spec.split(",")):
+        scenarios.get(name)  # one-line error naming the known ones
+        if name == "path":
+            raise InputError("scenario 'path' needs --path FILE")
+        out.append(name)
+    return out
+
+
+def run(args: argparse.Namespace) -> dict:
+    from flapsim import scenarios
+
+    if args.list:
+        return _list()
+    if args.k is not None and args.k < 1:
+        raise InputError(f"--k must be >= 1, got {args.k}")
+    if args.workers is not None and not (1 <= args.workers <= 4096):
+        raise InputError(f"--workers must be 1..4096, got {args.workers}")
+    plots, video = _dir("--plots", args.plots), _dir("--video", args.video)
+    if video:
+        from flapsim.validate import require_gl
+
+        require_gl()
+    opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, layers=args.layers,
+                                 feathers=args.feathers, plots_dir=plots, video_dir=video,
+                                 seed=args.seed, path_file=args.path, quick=args.quick)
+    if args.feathers != "rigid":
+        raise InputError("--feathers modal is not available in eval yet (the modal feathers are not "
+                         "in the learned controller's database); use --feathers rigid")
+    if args.table1:
+        return _table1(args, opts)
+    runs = [(n, opts) for n in _names(args)]
+    for d in (plots, video):
+        if d:
+            Path(d).mkdir(exist_ok=True)
+    results = execute(runs, args.workers, args.backend, args.address)
+    print_table(results)
+    failed = [r["scenario"] for r in results if not r.get("ok")]
+    return {"scenarios": results, "runs": len(results), "failed": failed,
+            "exit_status": 1 if failed else 0,
+            "options": opts.to_dict()}
+
+
+def execute(runs: list[tuple[str, object]], workers: int | None, backend: str = "local",
+            address: str | None = None) -> list[dict]:
+    """Run ``(scenario name, options)`` pairs on the training executor; results in order."""
+    from tqdm import tqdm
+
+    from flapsim.parallel import ChunkExecutor
+    from flapsim.scenarios import EvalWorker, RunsConfig
+
+    n = len(runs)
+    workers = workers or max(1, min(n, os.cpu_count() or 1))
+    workers = min(workers, n)
+    out: list[dict | None] = [None] * n
+    with ChunkExecutor(EvalWorker, RunsConfig(list(runs)), workers=workers, backend=backend,
+                       address=address) as ex, \
+            tqdm(total=n, desc="scenarios", unit="run") as bar:
+        for chunk in ex.map_unordered([(i, i + 1) for i in range(n)]):
+            for i, r in chunk:
+                out[i] = r
+                bar.set_postfix_str(f"{r['scenario']}: {r['status']}")
+                bar.update(1)
+    return [r for r in out if r is not None]
+
+
+def _fmt(v, digits: int = 3) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}"
+    return str(v)
+
+
+def print_table(results: list[dict]) -> None:
+    """One row per run: the paper's per-wingbeat Ep, Er, Eo, Ef (flight), or the swimmer's
+    distances to target, and the verdict."""
+    flight = [r for r in results if r["family"] == "flight"]
+    other = [r for r in results if r["family"] != "flight"]
+    if flight:
+        head = (f"{'scenario':<16} {'status':<10} {'Ep m':>7} {'Er rad':>7} {'Eo rad':>7} {'Ef m':>7} "
+                f"{'max m':>7} {'wb':>5}  note")
+        print(head)
+        print("-" * len(head))
+        for r in flight:
+            m = r.get("metrics", {})
+            note = r.get("reason", "")
+            if "table" in m:
+                note = "survived " + ", ".join(f"{row['newtons']:g}" for row in m["table"]
+                                               if row["survived"]) + " N"
+                note += "; lost at " + ", ".join(f"{row['newtons']:g}" for row in m["table"]
+                                                 if not row["survived"]) + " N" \
+                    if any(not row["survived"] for row in m["table"]) else ""
+            elif "steering_range_deg" in m and r["scenario"].startswith("sinusoid"):
+                lo, hi = m["steering_range_deg"]
+                note = (f"steering {lo:+.1f}..{hi:+.1f} deg/wingbeat"
+                        + (f" (capture {m['capture_steering_range_deg'][0]:+.1f}.."
+                           f"{m['capture_steering_range_deg'][1]:+.1f})"
+                           if m.get("capture_steering_range_deg") else "") + (f"; {note}" if note else ""))
+            elif "min_separation_m" in m:
+                note = f"closest birds {m['min_separation_m']:.2f} m" + (f"; {note}" if note else "")
+            elif "collisions" in m and r["scenario"] == "forest":
+                note = f"{m['collisions']} collisions" + (f"; {note}" if note else "")
+            print(f"{r['scenario']:<16} {r['status']:<10} {_fmt(m.get('Ep_per_wingbeat')):>7} "
+                  f"{_fmt(m.get('Er_per_wingbeat')):>7} {_fmt(m.get('Eo_per_wingbeat')):>7} "
+                  f"{_fmt(m.get('Ef_per_wingbeat')):>7} {_fmt(m.get('max_path_distance'), 2):>7} "
+                  f"{_fmt(m.get('wingbeats')):>5}  {note}")
+        print("per wingbeat: Ep, Ef in m; Er, Eo = ||log(q^-1 q')|| in rad (the paper's eq. 12-15)")
+    if other:
+        print()
+        keys = sorted({k for r in other for k, v in r.get("metrics", {}).items()
+                       if isinstance(v, (int, float)) and not isinstance(v, bool)})[:6]
+        head = f"{'scenario':<22} {'status':<10} " + " ".join(f"{k[:14]:>14}" for k in keys) + "  note"
+        print(head)
+        print("-" * len(head))
+        for r in other:
+            m = r.get("metrics", {})
+            print(f"{r['scenario']:<22} {r['status']:<10} "
+                  + " ".join(f"{_fmt(m.get(k)):>14}" for k in keys) + f"  {r.get('reason', '')}")
+
+
+def _list() -> dict:
+    from flapsim import scenarios
+
+    rows = []
+    for name in scenarios.names():
+        sc = scenarios.get(name)
+        rows.append({"name": name, "family": sc.family, "summary": sc.summary, "in_all": sc.in_all})
+        print(f"{name:<24} {sc.family:<7} {sc.summary}")
+    return {"scenarios": rows}
+
+
+# -- Table I --------------------------------------------------------------------------------
+
+def _table1(args: argparse.Namespace, opts) -> dict:
+    """Train (or reuse) the phase-1 databases and fly the scenario with each."""
+    import copy
+
+    from flapsim.bird.sampling import SampleWorker, SamplingConfig
+    from flapsim.bird.training import train
+
+    name = (args.scenario or DEFAULT_SCENARIO)
+    if "," in name or name in ("all", "path"):
+        raise InputError("--table1 flies one scenario: --scenario NAME")
+    from flapsim import scenarios
+
+    if scenarios.get(name).family != "flight":
+        raise InputError(f"--table1 needs a flight scenario, got {name!r}")
+    sizes = TABLE1_SIZES
+    if args.sizes:
+        try:
+            sizes = tuple(int(s) for s in args.sizes.split(","))
+        except ValueError:
+            raise InputError(f"--sizes must be integers separated by commas, got {args.sizes!r}") \
+                from None
+        if any(not (100 <= s <= 10**6) for s in sizes):
+            raise InputError(f"--sizes must each be 100..1e6, got {args.sizes}")
+    cache = Path(_dir("--cache", args.cache))
+    cache.mkdir(exist_ok=True)
+    # the bundled database's sampling (phase 1, pre-states within 10 deg), seed 1
+    config = SamplingConfig(seed=1, pitch_deg=10.0, roll_deg=10.0)
+    biggest = max(sizes)
+    dbs = {}
+    for n in sorted(set(sizes) | {10000 if 10000 in sizes else biggest}):
+        out = cache / f"phase1_{n}.db"
+        print(f"database of {n} samples: {out}")
+        train(config, out, n, SampleWorker, workers=args.workers or (os.cpu_count() or 1),
+              backend=args.backend, address=args.address)
+        dbs[n] = out
+    runs, labels = [], []
+    for n in sizes:
+        o = copy.copy(opts)
+        o.db, o.k = str(dbs[n]), max(1, round(0.005 * n))
+        runs.append((name, o))
+        labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
+    base = 10000 if 10000 in dbs else biggest
+    for kp in TABLE1_K_PERCENT:
+        if kp == 0.5:
+            continue
+        o = copy.copy(opts)
+        o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * base))
+        runs.append((name, o))
+        labels.append({"samples": base, "k_percent": kp, "k": o.k})
+    results = execute(runs, args.workers, args.backend, args.address)
+    print(f"\nTable I on {name} ({opts.method}): per-wingbeat means")
+    head = f"{'samples':>8} {'k %':>5} {'k':>5} {'status':<10} {'Ep m':>7} {'Er rad':>7} {'Eo rad':>7} {'Ef m':>7}"
+    print(head)
+    print("-" * len(head))
+    rows = []
+    for lab, r in zip(labels, results, strict=True):
+        m = r.get("metrics", {})
+        print(f"{lab['samples']:>8} {lab['k_percent']:>5g} {lab['k']:>5} {r['status']:<10} "
+              f"{_fmt(m.get('Ep_per_wingbeat')):>7} {_fmt(m.get('Er_per_wingbeat')):>7} "
+              f"{_fmt(m.get('Eo_per_wingbeat')):>7} {_fmt(m.get('Ef_per_wingbeat')):>7}")
+        rows.append({**lab, **r})
+    print("the paper (k-NN, its figure of eight): 10,000 samples, k = 0.5 %: Ep 0.039, Er 0.062, "
+          "Eo 0.111, Ef 0.145")
+    failed = [f"{row['samples']}/{row['k_percent']}%" for row in rows if not row.get("ok")]
+    return {"table1": rows, "scenario": name, "failed": failed, "exit_status": 1 if failed else 0,
+            "databases": {str(k): str(v) for k, v in dbs.items()}}
