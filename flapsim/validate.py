@@ -88,6 +88,7 @@ RANGES: dict[str, Range] = {
     "stiffness": Range(0.0, 1e6, "N m/rad", lo_open=True),
     "soft_limit_deg": Range(0.0, 90.0, "deg"),
     "polygons": Range(1, 100_000, "polygons"),
+    "cycles": Range(0.0, 100.0, "cycles", lo_open=True),
 }
 
 

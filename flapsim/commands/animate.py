@@ -7,26 +7,33 @@ import argparse
 import math
 
 from flapsim.errors import InputError
+from flapsim.validate import add_input_arg, add_output_arg, quantity
 
 HELP = "kinematic modal gait (walk, run, trot, ...) of the dog or human: npz, video, BVH"
+SEED_HELP = "accepted for uniformity; the animation is deterministic, --seed changes nothing"
+
+#: The most frames one animation may have (--seconds x --fps): the trajectory is held in
+#: memory (about 1 kB a frame for the human) and every frame is rendered for a video.
+MAX_FRAMES = 100_000
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gait", default="walk",
                    help="gait: trot, amble, gallop (dog); walk, run, jump, jumping_jacks, "
                    "run_head, push_cart (human); 'list' shows them (default walk)")
-    p.add_argument("--model", default=None,
-                   help="dog, human, human_cart or an MJCF path with the labels the heuristics "
+    add_input_arg(p, "--model", may_be_name=True, default=None,
+                  help="dog, human, human_cart or an MJCF path with the labels the heuristics "
                    "read (default: the gait's own creature)")
-    p.add_argument("--seconds", type=float, default=2.0, help="animation length, s (default 2)")
-    p.add_argument("--fps", type=float, default=30.0, help="frames per second (default 30)")
-    p.add_argument("--amplitude-scale", type=float, default=1.0,
+    p.add_argument("--seconds", type=quantity("seconds"), default=2.0,
+                   help=f"animation length, s (default 2; at most {MAX_FRAMES} frames in all)")
+    p.add_argument("--fps", type=quantity("fps"), default=30.0, help="frames per second (default 30)")
+    p.add_argument("--amplitude-scale", type=quantity("scale"), default=1.0,
                    help="multiply every mode amplitude and offset (stride length; default 1)")
-    p.add_argument("--freq", type=float, default=None,
+    p.add_argument("--freq", type=quantity("freq"), default=None,
                    help="gait frequency, Hz (default: the paper's 2 Hz)")
-    p.add_argument("--soft-limit-deg", type=float, default=5.0,
+    p.add_argument("--soft-limit-deg", type=quantity("soft_limit_deg"), default=5.0,
                    help="dtheta_soft: the most a joint may pass its limit, deg (default 5)")
-    p.add_argument("--stiffness-scale", type=float, default=1.0,
+    p.add_argument("--stiffness-scale", type=quantity("scale"), default=1.0,
                    help="multiply the joint stiffness before the analysis (default 1)")
     p.add_argument("--tune-stiffness", action="store_true",
                    help="first find the smallest uniform stiffness scale that holds the rest "
@@ -34,10 +41,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--project", action="store_true",
                    help="pull every frame back onto the constraints (closed loops, fixed head); "
                    "otherwise they hold to first order only, as in the paper")
-    p.add_argument("--npz", metavar="PATH", help="write the joint trajectory (times, qpos)")
-    p.add_argument("--video", metavar="PATH", help="write an .mp4 or .gif of the animation")
-    p.add_argument("--bvh", metavar="PATH", help="write the animation as BVH (cm, z up)")
-    p.add_argument("--sheet", metavar="PNG",
+    add_output_arg(p, "--npz", kinds=(".npz",), help="write the joint trajectory (times, qpos)")
+    add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
+                   help="write an .mp4 or .gif of the animation")
+    add_output_arg(p, "--bvh", kinds=(".bvh",), help="write the animation as BVH (cm, z up)")
+    add_output_arg(p, "--sheet", kinds=(".png",), renders=True, metavar="PNG",
                    help="write an offscreen contact sheet of one cycle (mode browser view)")
     p.add_argument("--browse", action="store_true",
                    help="open the interactive mode browser (sliders per mode; needs a display)")
@@ -63,20 +71,11 @@ def run(args: argparse.Namespace) -> dict:
     if args.gait == "list":
         return _list()
     g = gait(args.gait)
-    for name in ("seconds", "fps", "amplitude_scale", "stiffness_scale"):
-        v = getattr(args, name)
-        if not (math.isfinite(v) and v > 0):
-            raise InputError(f"--{name.replace('_', '-')} must be a positive number")
-    if args.freq is not None and not (math.isfinite(args.freq) and args.freq > 0):
-        raise InputError("--freq must be a positive number of Hz")
-    if not (math.isfinite(args.soft_limit_deg) and args.soft_limit_deg >= 0):
-        raise InputError("--soft-limit-deg must be >= 0")
-    if args.video:
-        from flapsim.modal.video import check_video_path
-
-        check_video_path(args.video)
-    if args.sheet and not args.sheet.lower().endswith(".png"):
-        raise InputError(f"--sheet {args.sheet} must end in .png")
+    frames = int(round(args.seconds * args.fps))
+    if frames > MAX_FRAMES:
+        raise InputError(f"--seconds {args.seconds:g} at --fps {args.fps:g} is {frames} frames; at "
+                         f"most {MAX_FRAMES} (the trajectory is held in memory): shorten it or "
+                         "lower --fps")
     spec = args.model or g.model
     if spec in MODELS and spec != g.model and not (spec == "human_cart" and g.model == "human"):
         raise InputError(f"gait {g.name!r} is for --model {g.model}, not {spec}")

@@ -6,8 +6,10 @@ import argparse
 import importlib
 
 from flapsim.errors import InputError
+from flapsim.validate import add_input_arg, integer, integer_list, quantity
 
 HELP = "run a speed benchmark (forces, ...) and report ratios measured in the same run"
+SEED_HELP = "random seed of the benchmark's polygons ('forces'); the other targets ignore it"
 
 # name -> "module:function"; each function takes the parsed args and returns a dict.
 BENCHES: dict[str, str] = {
@@ -24,20 +26,22 @@ BENCHES: dict[str, str] = {
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("target", help=f"what to benchmark: {', '.join(BENCHES)}")
     p.add_argument(
-        "--seconds", type=float, default=None, help="wall seconds per measurement (default: per target)"
+        "--seconds", type=quantity("seconds"), default=None,
+        help="wall seconds per measurement (default: per target)"
     )
     p.add_argument(
         "--polygons",
         default=None,
-        help="comma-separated polygon counts for 'forces' (default 50,300,1000)",
+        type=integer_list(1, 100_000, "polygons"),
+        help="comma-separated polygon counts for 'forces' (default 50,300,1000; each 1..100000)",
     )
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", type=integer(1, 4096), default=None,
                    help="worker processes for 'train' (default 2, or fewer CPU cores)")
-    p.add_argument("--samples", type=int, default=None,
+    p.add_argument("--samples", type=integer(1, 100000), default=None,
                    help="samples for 'train' (default 48 per worker)")
-    p.add_argument("--wingbeats", type=int, default=None,
+    p.add_argument("--wingbeats", type=integer(1, 100000), default=None,
                    help="wingbeats for 'controller' (default 20)")
-    p.add_argument("--db", default=None, help="database for 'controller' (default: the bundled one)")
+    add_input_arg(p, "--db", default=None, help="database for 'controller' (default: the bundled one)")
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -47,5 +51,7 @@ def run(args: argparse.Namespace) -> dict:
             raise InputError(f"--{flag} must be 1..100000, got {v}")
     if args.target not in BENCHES:
         raise InputError(f"unknown benchmark {args.target!r}; choose one of {', '.join(BENCHES)}")
+    if isinstance(args.polygons, list):  # parsed and bounded by its type; the bench reads text
+        args.polygons = ",".join(str(n) for n in args.polygons)
     module_name, func = BENCHES[args.target].split(":")
     return getattr(importlib.import_module(module_name), func)(args)

@@ -5,24 +5,27 @@ from __future__ import annotations
 import argparse
 
 from flapsim.errors import InputError
+from flapsim.validate import add_output_arg, quantity
 
 HELP = "simulate the loop or linear creature driven by its two lowest modes; report distance"
+SEED_HELP = "accepted for uniformity; the creature is deterministic, --seed changes nothing"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", default="loop", help="which creature: loop or linear (default loop)")
-    p.add_argument("--seconds", type=float, default=10.0,
+    p.add_argument("--seconds", type=quantity("seconds"), default=10.0,
                    help="simulated seconds of driven motion (default 10)")
-    p.add_argument("--amplitude-deg", type=float, default=None,
+    p.add_argument("--amplitude-deg", type=quantity("angle_deg"), default=None,
                    help="set-point amplitude of the most-moving joint per mode, deg "
                    "(default: the creature's gait)")
-    p.add_argument("--freq", type=float, default=None,
+    p.add_argument("--freq", type=quantity("freq"), default=None,
                    help="drive frequency of both modes, Hz (default: 5.25 loop = its natural "
                    "frequency, 5 linear, as in the paper)")
-    p.add_argument("--phase-deg", type=float, default=None,
+    p.add_argument("--phase-deg", type=quantity("angle_deg"), default=None,
                    help="phase of the second mode relative to the first, deg (default 90; "
                    "-90 travels the other way)")
-    p.add_argument("--video", metavar="PATH", help="write an .mp4 or .gif of the run")
+    add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
+                   help="write an .mp4 or .gif of the run")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -33,16 +36,6 @@ def run(args: argparse.Namespace) -> dict:
 
     if args.model not in CREATURES:
         raise InputError(f"unknown creature {args.model!r}; choose one of {', '.join(CREATURES)}")
-    if args.freq is not None and not (math.isfinite(args.freq) and args.freq > 0):
-        raise InputError("--freq must be a positive number of Hz")
-    if args.amplitude_deg is not None and not math.isfinite(args.amplitude_deg):
-        raise InputError("--amplitude-deg must be finite")
-    if args.phase_deg is not None and not math.isfinite(args.phase_deg):
-        raise InputError("--phase-deg must be finite")
-    if args.video:
-        from flapsim.modal.video import check_video_path
-
-        check_video_path(args.video)
     gait = with_gait(
         args.model,
         amplitude_rad=None if args.amplitude_deg is None else math.radians(args.amplitude_deg),

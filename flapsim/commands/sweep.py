@@ -10,27 +10,32 @@ from flapsim.commands.swim import add_target_arguments, target_from_args
 from flapsim.errors import InputError
 from flapsim.io import atomic_path
 from flapsim.swim.sweep import PARAMETERS, sweep, table
+from flapsim.validate import RANGES, add_input_arg, add_output_arg, integer, quantity
 
 HELP = ("batch-evaluate the swimmer: one stroke over several water densities, lung "
         "volumes, stroke rates, frictions or cross currents; a table of the results")
+SEED_HELP = "accepted for uniformity; swimming is deterministic, --seed changes nothing"
+EXIT_STATUS = ("  1    at least one run failed (diverged): the table, --csv and --json are still "
+               "written,\n       each failed run with its error")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--stroke", default="crawl",
-                   help="breaststroke, crawl, treading, or a stroke .toml file (default crawl)")
+    add_input_arg(p, "--stroke", may_be_name=True, default="crawl",
+                  help="breaststroke, crawl, treading, or a stroke .toml file (default crawl)")
     p.add_argument("--vary", required=True, choices=sorted(PARAMETERS),
                    help="the parameter to sweep: " + ", ".join(
                        f"{k} [{v[1]}]" for k, v in PARAMETERS.items())
                    + " (current: a cross current along +y)")
     p.add_argument("--values", required=True, metavar="V1,V2,...",
                    help="the values to try, comma-separated")
-    p.add_argument("--seconds", type=float, default=20.0, help="simulated time per run [s]")
+    p.add_argument("--seconds", type=quantity("seconds"), default=20.0,
+                   help="simulated time per run [s]")
     add_target_arguments(p)
     p.add_argument("--no-feedback", action="store_true", help="basic stroke layer only")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", type=integer(1, 256), default=None,
                    help="parallel processes (default: one per CPU core, at most one per value)")
-    p.add_argument("--csv", metavar="PATH", help="also write the table as CSV")
-    p.add_argument("--plot", metavar="PATH",
+    add_output_arg(p, "--csv", kinds=(".csv",), help="also write the table as CSV")
+    add_output_arg(p, "--plot", kinds=(".png",),
                    help="also plot speeds and heights against the parameter (PNG)")
 
 
@@ -39,14 +44,13 @@ def run(args: argparse.Namespace) -> dict:
         values = [float(v) for v in args.values.split(",") if v.strip()]
     except ValueError:
         raise InputError(f"--values must be comma-separated numbers, got {args.values!r}") from None
-    if not (0 < args.seconds <= 3600):
-        raise InputError(f"--seconds must be in (0, 3600], got {args.seconds}")
-    if args.workers is not None and args.workers < 1:
-        raise InputError("--workers must be >= 1")
-    if args.csv and not str(args.csv).endswith(".csv"):
-        raise InputError(f"--csv must name a .csv file, got {args.csv!r}")
-    if args.plot and not str(args.plot).endswith(".png"):
-        raise InputError(f"--plot must name a .png file, got {args.plot!r}")
+    rng = RANGES[args.vary]
+    bad = [f"{v:g}" for v in values if not rng.contains(v)]
+    if bad:  # the same ranges as flapsim swim's options
+        raise InputError(f"--values: {args.vary} values must be within {rng.describe()}, "
+                         f"got {', '.join(bad)}")
+    if not values:
+        raise InputError("--values: give at least one value")
     target = target_from_args(args)
     from tqdm import tqdm
 
@@ -62,11 +66,12 @@ def run(args: argparse.Namespace) -> dict:
     print(text)
     if args.csv:
         keys = sorted({k for r in rows for k, v in r.items() if not isinstance(v, (dict, list))},
-                      key=lambda k: (k != "value", k))
+                      key=lambda k: (k != "value", k == "error", k))
         with atomic_path(args.csv) as tmp:
             lines = [",".join(keys)]
             for r in rows:
-                lines.append(",".join("" if r.get(k) is None else str(r.get(k)) for k in keys))
+                lines.append(",".join("" if r.get(k) is None else _csv_cell(r.get(k))
+                                      for k in keys))
             tmp.write_text("\n".join(lines) + "\n")
         print(f"table written to {args.csv}")
     if args.plot:
@@ -74,6 +79,19 @@ def run(args: argparse.Namespace) -> dict:
 
         sweep_plot(rows, args.vary, PARAMETERS[args.vary][1], args.plot, args.stroke)
         print(f"plot written to {args.plot}")
+    failed = [r for r in rows if "error" in r]
+    if failed:
+        print(f"{len(failed)} of {len(rows)} runs failed: "
+              + "; ".join(f"{args.vary} {r['value']:g}: {r['error']}" for r in failed))
     return {"stroke": args.stroke, "vary": args.vary, "unit": PARAMETERS[args.vary][1],
             "seconds": args.seconds, "target": target.describe() if target else None,
-            "rows": rows, "wall_s": wall}
+            "rows": rows, "failed_runs": len(failed), "exit_status": 1 if failed else 0,
+            "wall_s": wall}
+
+
+def _csv_cell(v: object) -> str:
+    """A CSV cell: text with commas or quotes quoted (an error message)."""
+    text = str(v)
+    if any(c in text for c in ',"\n'):
+        text = '"' + text.replace('"', '""').replace("\n", " ") + '"'
+    return text

@@ -140,15 +140,28 @@ def fix_joint(joint: str) -> ExtraConstraint:
     return ExtraConstraint("joint", (joint,))
 
 
-def fix_root(model: mujoco.MjModel) -> list[ExtraConstraint]:
-    """Freeze the free joints of bodies attached to the world (the floating roots)."""
+def root_joints(model: mujoco.MjModel) -> list[int]:
+    """The joints that float a root: free joints of bodies attached to the world, and every
+    joint of a world-attached body that has a slide joint (a planar root: slide x, slide z,
+    hinge y). A hinge alone on a world-attached body is a real joint, not a root."""
     out = []
-    for j in range(model.njnt):
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-            if model.body_parentid[model.jnt_bodyid[j]] == 0:
-                out.append(ExtraConstraint("joint", (_joint_name(model, j),)))
+    for b in range(1, model.nbody):
+        if model.body_parentid[b] != 0:
+            continue
+        joints = [j for j in range(model.njnt) if model.jnt_bodyid[j] == b]
+        kinds = {int(model.jnt_type[j]) for j in joints}
+        if int(mujoco.mjtJoint.mjJNT_FREE) in kinds or int(mujoco.mjtJoint.mjJNT_SLIDE) in kinds:
+            out += joints
+    return out
+
+
+def fix_root(model: mujoco.MjModel) -> list[ExtraConstraint]:
+    """Freeze the floating roots (:func:`root_joints`); an :class:`InputError` when the
+    model has none (asking to fix nothing is a mistake worth hearing about)."""
+    out = [ExtraConstraint("joint", (_joint_name(model, j),)) for j in root_joints(model)]
     if not out:
-        log.info("fix_root: the model has no free root joint; nothing to fix")
+        raise InputError("the model has no floating root (no free joint, no slide joints on a "
+                         "body attached to the world): nothing to fix")
     return out
 
 
@@ -333,6 +346,8 @@ class ModalAnalysis:
                     "rigid": i < self.n_rigid,
                     "freq_hz": float(self.freqs_hz[i]),
                     "damping_ratio": float(zeta[i]) if np.isfinite(zeta[i]) else None,
+                    # zeta >= 1: the mode does not oscillate (its frequency is the undamped one)
+                    "overdamped": bool(np.isfinite(zeta[i]) and zeta[i] >= 1.0),
                     "dominant_joints": self.dominant_joints(i),
                 }
             )
@@ -503,9 +518,11 @@ def _stiffness(
                 if name in override:
                     k_joint[j] = float(override[name])
         else:
-            # A uniform value (the paper's "1 N/rad uniform") covers every internal joint.
+            # A uniform value (the paper's "1 N/rad uniform") covers every internal joint:
+            # not the floating root's (free joints, or the slides/hinges of a planar root)
+            roots = set(root_joints(model))
             for j, kind in enumerate(joint_kinds):
-                if kind != "free":
+                if kind != "free" and j not in roots:
                     k_joint[j] = float(override)
     k_joint = k_joint * float(scale)
     if np.any(~np.isfinite(k_joint)) or np.any(k_joint < 0):
@@ -625,8 +642,8 @@ def analyze(
         constraints: extra bilateral constraints (:func:`fix_body_orientation`,
             :func:`pin_site`, :func:`ground_contact`, :func:`fix_joint`, :func:`fix_root`).
         use_equality: include the model's active equality constraints (closed loops).
-        stiffness: replace joint stiffness: one value (N m/rad, N/m) for every non-free
-            joint, or a mapping joint name -> value.
+        stiffness: replace joint stiffness: one value (N m/rad, N/m) for every joint but
+            the floating root's (:func:`root_joints`), or a mapping joint name -> value.
         stiffness_scale: multiply all stiffness (joints and tendons) by this.
         actuator_stiffness: add the stiffness of position servos (``kp``) to ``K``.
 

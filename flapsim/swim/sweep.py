@@ -12,14 +12,14 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from flapsim.errors import InputError
+from flapsim.validate import RANGES
 
-#: parameter -> (SwimmerParams field or swim() argument, unit, valid range)
+#: parameter -> (SwimmerParams field or swim() argument, unit, valid range); the ranges are
+#: the ones ``flapsim swim`` accepts (flapsim.validate.RANGES)
 PARAMETERS: dict[str, tuple[str, str, tuple[float, float]]] = {
-    "density": ("water_density", "kg/m^3", (100.0, 5000.0)),
-    "lungs": ("lung_volume_l", "L", (0.0, 6.0)),
-    "rate": ("rate_hz", "cycles/s", (0.05, 5.0)),
-    "friction": ("friction", "N s/m^3", (0.0, 1000.0)),
-    "current": ("current_y", "m/s", (-5.0, 5.0)),
+    name: (field, RANGES[name].unit, (RANGES[name].lo, RANGES[name].hi))
+    for name, field in (("density", "water_density"), ("lungs", "lung_volume_l"),
+                        ("rate", "rate_hz"), ("friction", "friction"), ("current", "current_y"))
 }
 
 #: summary entries tabulated (when present), with their column titles
@@ -68,7 +68,7 @@ def sweep(stroke: str, name: str, values: Sequence[float], seconds: float = 20.0
     vals = [float(v) for v in values]
     if not vals:
         raise InputError("give at least one value to sweep")
-    bad = [v for v in vals if not (lo <= v <= hi)]
+    bad = [v for v in vals if not RANGES[name].contains(v)]
     if bad:
         raise InputError(f"{name} values must be within {lo:g}..{hi:g} "
                          f"{PARAMETERS[name][1]}, got {bad}")
@@ -81,13 +81,31 @@ def sweep(stroke: str, name: str, values: Sequence[float], seconds: float = 20.0
             if on_done:
                 on_done(rows[i])
     else:
-        with ProcessPoolExecutor(workers) as pool:
+        pool = ProcessPoolExecutor(workers, initializer=_init_worker)
+        try:
             futures = {pool.submit(_one, job): i for i, job in enumerate(jobs)}
             for fut in as_completed(futures):
                 rows[futures[fut]] = fut.result()
                 if on_done:
                     on_done(rows[futures[fut]])
+        except BaseException:  # an error, Ctrl-C or SIGTERM: drop the queue, stop the workers
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                p.terminate()
+            for p in procs:
+                p.join(10)
+            raise
+        pool.shutdown()
     return [rows[i] for i in range(len(jobs))]
+
+
+def _init_worker() -> None:
+    """Workers leave Ctrl-C and SIGTERM to the parent, which stops them."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def table(rows: list[dict], name: str) -> str:

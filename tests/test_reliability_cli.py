@@ -1,0 +1,177 @@
+"""Issue 13: bad input is refused before any work, with one line and exit status 2;
+outputs are never half-written; batch failures give a non-zero status."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from flapsim import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+NO_GL_LIBS = "import ctypes.util; ctypes.util.find_library = lambda name: None; "
+
+
+def run_cli(*args, env=None, cwd=None, timeout=120, pre=""):
+    e = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    e.update(env or {})
+    code = pre + "import sys; from flapsim.cli import main; sys.exit(main(sys.argv[1:]))"
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
+                          text=True, timeout=timeout, env=e, cwd=cwd)
+
+
+def one_line_error(capsys, rc, fragment):
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert rc == 2, err
+    assert len(err) == 1, err
+    assert fragment in err[0], err[0]
+    assert "Traceback" not in err[0]
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    # nonsense numbers: each refused while parsing, with the range in the message
+    (["swim", "--current", "1e6,0,0"], "must be -5..5 m/s"),
+    (["swim", "--density", "1e9"], "must be 100..5000 kg/m^3"),
+    (["swim", "--source", "0,0,0,1e9"], "must be -10..10 m^3/s"),
+    (["swim", "--fps", "0"], "must be 1..240 frames/s"),
+    (["swim", "--seconds", "nan"], "must be > 0 and <= 3600 s"),
+    (["demo", "--mass", "nan"], "must be 1e-06..1000 kg"),
+    (["demo", "--seconds", "inf"], "must be > 0"),
+    (["sweep", "--vary", "density", "--values", "1e9"], "within 100..5000 kg/m^3, got 1e+09"),
+    (["sweep", "--vary", "current", "--values", "6"], "within -5..5 m/s, got 6"),
+    (["bench", "forces", "--polygons", "10000000"], "must be 1..100000"),
+    (["bench", "forces", "--polygons", "abc"], "expected a whole number"),
+    (["animate", "--fps", "0"], "must be 1..240"),
+    (["animate", "--seconds", "1e6"], "must be > 0 and <= 3600"),
+    (["creature", "--seconds", "-1"], "must be > 0"),
+    # outputs of the wrong kind
+    (["swim", "--video", "a.avi"], "must end in .mp4"),
+    (["animate", "--video", "a.avi"], "must end in .mp4 or .gif"),
+    (["modes", str(ROOT / "creatures" / "loop.xml"), "--json", "-", "--video", "-"],
+     "only --json can go to stdout"),
+])
+def test_nonsense_is_refused_before_any_work(argv, fragment, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    one_line_error(capsys, cli.main(argv), fragment)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_outputs_are_checked_before_simulating(tmp_path, capsys, monkeypatch):
+    # a missing folder, a folder, a read-only folder: refused before the swimmer is built
+    import flapsim.swim.simulate as sim
+
+    def no_swim(*a, **k):
+        raise AssertionError("simulated before checking the outputs")
+
+    monkeypatch.setattr(sim, "swim", no_swim)
+    monkeypatch.setattr("flapsim.commands.swim.swim", no_swim)
+    one_line_error(capsys, cli.main(["swim", "--json", str(tmp_path / "no" / "s.json")]),
+                   "does not exist")
+    one_line_error(capsys, cli.main(["swim", "--json", str(tmp_path)]), "is a folder")
+    one_line_error(capsys, cli.main(["swim", "--out", str(tmp_path / "x.npz"),
+                                     "--json", str(tmp_path / "x.npz")]), "name the same file")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        if not os.access(ro, os.W_OK):  # (root can write anywhere)
+            one_line_error(capsys, cli.main(["swim", "--json", str(ro / "s.json")]),
+                           "not writable")
+    finally:
+        ro.chmod(0o755)
+
+
+def test_an_output_never_replaces_an_input(tmp_path, capsys):
+    model = tmp_path / "m.xml"
+    text = '<mujoco><worldbody><body><joint type="hinge"/><geom size=".1"/></body></worldbody></mujoco>'
+    model.write_text(text)
+    one_line_error(capsys, cli.main(["modes", str(model), "--json", str(model)]),
+                   "is the input of model")
+    assert model.read_text() == text
+    path = tmp_path / "p.csv"
+    path.write_text("x,y\n0,0\n10,0\n")
+    one_line_error(capsys, cli.main(["swim", "--path", str(path), "--json", str(path)]),
+                   "is the input of --path")
+
+
+def test_json_dash_is_stdout_and_the_summary_goes_to_stderr(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["demo", "--seconds", "0.2", "--json", "-"]) == 0
+    out = capsys.readouterr()
+    data = json.loads(out.out)  # stdout is the JSON alone
+    assert data["command"] == "demo"
+    assert "terminal velocity" in out.err
+    assert list(tmp_path.iterdir()) == []  # no file named '-'
+
+
+def test_exit_statuses_and_seed_are_documented_in_every_help():
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    for name, p in sub.choices.items():
+        text = p.format_help()
+        assert "exit status:" in text and "130" in text, name
+    assert "at least one run failed" in sub.choices["sweep"].format_help()
+    for name in ("demo", "swim", "sweep", "modes", "creature", "animate"):
+        assert "changes nothing" in sub.choices[name].format_help(), name
+
+
+@pytest.mark.parametrize("value", ["foo", "osmesa-missing"])
+def test_a_bad_mujoco_gl_breaks_only_rendering(value, tmp_path):
+    env, pre = {"MUJOCO_GL": value}, ""
+    if value == "osmesa-missing":
+        # osmesa is installed here: pretend its library is not (what the check looks for)
+        env, pre = {"MUJOCO_GL": "osmesa"}, NO_GL_LIBS
+    r = run_cli("--help", env=env, pre=pre)
+    assert r.returncode == 0 and "swim" in r.stdout, r.stderr
+    r = run_cli("demo", "--seconds", "0.05", env=env, cwd=tmp_path, pre=pre)
+    assert r.returncode == 0, r.stderr
+    r = run_cli("modes", str(ROOT / "creatures" / "loop.xml"), "--video",
+                str(tmp_path / "m.gif"), env=env, cwd=tmp_path, pre=pre)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "cannot render" in lines[0], r.stderr
+    assert "MUJOCO_GL" in lines[0]
+    assert not (tmp_path / "m.gif").exists()
+
+
+def test_gl_problem_names_the_missing_library():
+    from flapsim.validate import gl_problem
+
+    assert gl_problem("egl", find_library=lambda name: "libEGL.so.1") is None
+    assert "libOSMesa" in gl_problem("osmesa", find_library=lambda name: None)
+    assert "not a MuJoCo GL backend" in gl_problem("vulkan")
+    assert gl_problem("disable") is None
+
+
+class _FakeResult:
+    def __init__(self, v):
+        self.v = v
+
+    def summary(self):
+        return {"speed_m_s": self.v / 1000.0}
+
+
+def test_sweep_exits_1_when_a_run_failed_and_still_writes_everything(tmp_path, monkeypatch, capsys):
+    import flapsim.swim.simulate as sim
+    from flapsim.errors import SimulationError
+
+    def fake_swim(stroke, seconds, params, **kw):
+        if params.water_density == 1100.0:
+            raise SimulationError("the swimmer diverged at t=0.500 s: lower the timestep")
+        return _FakeResult(params.water_density)
+
+    monkeypatch.setattr(sim, "swim", fake_swim)
+    js, csv = tmp_path / "s.json", tmp_path / "s.csv"
+    rc = cli.main(["sweep", "--vary", "density", "--values", "1000,1100", "--workers", "1",
+                   "--seconds", "1", "--json", str(js), "--csv", str(csv)])
+    assert rc == 1
+    data = json.loads(js.read_text())
+    assert data["failed_runs"] == 1 and data["exit_status"] == 1
+    assert data["rows"][0]["speed_m_s"] == 1.0 and "diverged" in data["rows"][1]["error"]
+    lines = csv.read_text().splitlines()
+    assert lines[0].split(",")[-1] == "error" and "diverged" in lines[2]
+    assert "1 of 2 runs failed" in capsys.readouterr().out
