@@ -7,7 +7,9 @@ import argparse
 import numpy as np
 
 from flapsim.errors import InputError
+from flapsim.validate import add_input_arg, add_output_arg, quantity
 
+SEED_HELP = "accepted for uniformity (stored in --out); flight is deterministic, --seed changes nothing"
 HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat controller holding "
         "altitude, speed and heading) and report speed, deviations, lift/weight")
 
@@ -16,14 +18,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wingbeats", type=int, default=None,
                    help="wingbeats to fly (default 10; with --path: at most, default enough for "
                         "1.5x the path's length)")
-    p.add_argument("--path", metavar="FILE", default=None,
-                   help="follow a 3D path (CSV with header x,y,z, or JSON list of [x,y,z]) with "
+    add_input_arg(p, "--path", metavar="FILE", default=None,
+                  help="follow a 3D path (CSV with header x,y,z, or JSON list of [x,y,z]) with "
                         "the learned controller: look-ahead, Hermite recovery, banked turns")
     p.add_argument("--controller", choices=("base", "learned"), default="base",
                    help="base: repeat the reference wingbeat (default); learned: the k-NN wingbeat "
                         "controller over a trained database, holding the start altitude, --speed "
                         "and heading")
-    p.add_argument("--db", metavar="DB", help="controller database (default: the bundled one)")
+    add_input_arg(p, "--db", metavar="DB", help="controller database (default: the bundled one)")
     p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
                    help="regression of the learned controller: lwlr (default; locally weighted "
                         "linear regression) or knn (the paper's k-NN average, which does not hold "
@@ -32,8 +34,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="neighbours of the regression (default 0.5%% of the database)")
     p.add_argument("--roll-deg", type=float, default=0.0,
                    help="initial roll error, deg (+ right wing down)")
-    p.add_argument("--video", metavar="PATH", help="write a chase-camera video (.mp4)")
-    p.add_argument("--out", metavar="PATH", help="write the trajectory (.npz)")
+    add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
+                   help="write a chase-camera video (.mp4 or .gif)")
+    add_output_arg(p, "--out", kinds=(".npz",), help="write the trajectory (.npz)")
     p.add_argument("--speed", type=float, default=7.0, help="initial speed, m/s (default 7)")
     p.add_argument("--pitch-deg", type=float, default=0.0, help="initial trunk pitch (default 0)")
     p.add_argument("--tail-bias-deg", type=float, default=17.0,
@@ -42,7 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="feather coefficient table (default dickinson1999_lowdrag)")
     p.add_argument("--python-loop", action="store_true",
                    help="step in a Python loop instead of mujoco.rollout (same result)")
-    p.add_argument("--fps", type=float, default=30.0, help="video frames per second")
+    p.add_argument("--fps", type=quantity("fps"), default=30.0, help="video frames per second")
     p.add_argument("--size", default="640x480", help="video size WxH (default 640x480)")
 
 
@@ -63,12 +66,12 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--wingbeats must be 1..10000, got {args.wingbeats}")
     if not (0.0 <= args.speed <= 30.0):
         raise InputError(f"--speed must be 0..30 m/s, got {args.speed}")
-    if args.video and not args.video.lower().endswith((".mp4", ".gif", ".mkv", ".avi")):
-        raise InputError(f"--video {args.video}: use a .mp4 (or .gif/.mkv/.avi) file name")
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
         raise InputError(f"--size must look like 640x480, got {args.size!r}") from None
+    if not (16 <= width <= 4096 and 16 <= height <= 4096):
+        raise InputError(f"--size must be 16..4096 pixels each way, got {args.size!r}")
     if not np.isfinite(args.roll_deg) or abs(args.roll_deg) > 90:
         raise InputError(f"--roll-deg must be within -90..90, got {args.roll_deg}")
     if args.k is not None and args.k < 1:
