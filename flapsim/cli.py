@@ -35,7 +35,7 @@ from flapsim.errors import FlapsimError
 from flapsim.validate import add_output_arg, check_outputs, guard_gl
 
 # Order is the order ``flapsim --help`` lists them in.
-COMMANDS: tuple[str, ...] = ("fly", "eval", "train", "swim", "sweep", "modes", "creature",
+COMMANDS: tuple[str, ...] = ("fly", "eval", "view", "train", "swim", "sweep", "modes", "creature",
                              "animate", "demo", "bench")
 
 

@@ -266,7 +266,8 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)
     print(f"\nTable I on {name} ({opts.method}): per-wingbeat means")
-    head = f"{'samples':>8} {'k %':>5} {'k':>5} {'status':<10} {'Ep m':>7} {'Er rad':>7} {'Eo rad':>7} {'Ef m':>7}"
+    head = (f"{'samples':>8} {'k %':>5} {'k':>5} {'status':<10} {'Ep m':>7} {'Er rad':>7} "
+            f"{'Eo rad':>7} {'Ef m':>7}")
     print(head)
     print("-" * len(head))
     rows = []

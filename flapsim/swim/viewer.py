@@ -9,81 +9,55 @@ breaststroke; treading water stays in place). Keys:
 * Page Up / Page Down: stroke rate x1.05 / /1.05;
 * closing the window (or ``--seconds``) ends the swim; the usual results follow.
 
+The window, camera (tracking the thorax; ``Home``: free camera), key queue, overlay and
+pacing are the shared :class:`flapsim.viewer.AnimalViewer`; this module holds what is the
+swimmer's own: its keys and what they change.
+
 Needs a display (or Xvfb) and MuJoCo's GLFW backend: ``MUJOCO_GL`` unset or ``glfw``.
 """
 
 from __future__ import annotations
 
-import os
-import queue
-import threading
-import time
-
-import mujoco
 import numpy as np
 
-from flapsim.errors import InputError
 from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.model import Swimmer
 from flapsim.swim.targets import Point
+from flapsim.viewer import (
+    FRAME_S,
+    KEY_DOWN,
+    KEY_LEFT,
+    KEY_PAGE_DOWN,
+    KEY_PAGE_UP,
+    KEY_RIGHT,
+    KEY_UP,
+    AnimalViewer,
+    Marker,
+    check_display,
+)
 
-#: GLFW key codes (what MuJoCo's key callback receives)
-KEY_RIGHT, KEY_LEFT, KEY_DOWN, KEY_UP, KEY_PAGE_UP, KEY_PAGE_DOWN = 262, 263, 264, 265, 266, 267
+__all__ = ["SwimViewer", "check_display", "MOVES"]
+
 MOVES = {KEY_UP: (1.0, 0.0), KEY_DOWN: (-1.0, 0.0), KEY_LEFT: (0.0, 1.0), KEY_RIGHT: (0.0, -1.0)}
-FRAME_S = 1.0 / 30.0  # how often the view is refreshed [s of simulated time]
-
-
-def check_display() -> None:
-    """One-line error when the viewer cannot open here."""
-    gl = os.environ.get("MUJOCO_GL", "glfw").lower()
-    if gl not in ("glfw", ""):
-        raise InputError(f"the viewer needs MuJoCo's GLFW backend, but MUJOCO_GL={gl}: run with "
-                         "MUJOCO_GL=glfw and a display (or under Xvfb)")
-    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
-        raise InputError("the viewer needs a display: set DISPLAY (e.g. run under Xvfb)")
 
 
 class SwimViewer:
     """The control hook that runs the viewer (see :func:`flapsim.swim.simulate.swim`)."""
 
     def __init__(self, swimmer: Swimmer, target: Point, launch=None) -> None:
-        import mujoco.viewer
-
         self.target = target
-        self.keys: queue.Queue[int] = queue.Queue()
         self.events: list[dict] = []
-        launch = launch or mujoco.viewer.launch_passive
-        before = set(threading.enumerate())
-        self.handle = launch(swimmer.model, swimmer.data, key_callback=self.keys.put)
-        # the viewer renders in a daemon thread; close() must wait for it to tear its
-        # window down, or the exiting interpreter terminates GLFW under it (seen here:
-        # GLXBadDrawable, then a segfault or a hang)
-        self._threads = [t for t in threading.enumerate() if t not in before]
-        self._t0_wall: float | None = None
-        self._t0_sim = 0.0
-        self._next_frame = 0.0
+        self.view = AnimalViewer(swimmer.model, swimmer.data, "thorax", distance=3.0, launch=launch)
 
     def __call__(self, swimmer: Swimmer, layer: BasicStrokeLayer) -> bool:
         d = swimmer.data
-        while not self.keys.empty():
-            self._key(self.keys.get(), layer, float(d.time))
-        if d.time + 1e-9 < self._next_frame:
+        for key in self.view.pending_keys():
+            self._key(key, layer, float(d.time))
+        if d.time + 1e-9 < self.view.next_frame:
             return True
-        self._next_frame = d.time + FRAME_S
-        if not self.handle.is_running():
-            return False
-        with self.handle.lock():
-            self._draw()
-        self._texts(swimmer, layer)
-        self.handle.sync()
-        # pace to real time (the simulation itself runs ~100x faster)
-        now = time.perf_counter()
-        if self._t0_wall is None:
-            self._t0_wall, self._t0_sim = now, float(d.time)
-        ahead = (d.time - self._t0_sim) - (now - self._t0_wall)
-        if ahead > 0:
-            time.sleep(ahead)
-        return True
+        self.view.next_frame = d.time + FRAME_S
+        return self.view.show(float(d.time), [Marker((self.target.x, self.target.y, 0.05))],
+                              self._texts(swimmer, layer))
 
     def _key(self, key: int, layer: BasicStrokeLayer, t: float) -> None:
         if key in MOVES:
@@ -96,27 +70,14 @@ class SwimViewer:
             layer.rate_hz = float(np.clip(layer.rate_hz * f, 0.05, 5.0))
             self.events.append({"t": t, "key": key, "rate_hz": layer.rate_hz})
 
-    def _draw(self) -> None:
-        scn = self.handle.user_scn
-        scn.ngeom = 0
-        if scn.maxgeom < 1:
-            return
-        mujoco.mjv_initGeom(scn.geoms[0], mujoco.mjtGeom.mjGEOM_SPHERE, np.array([0.15, 0, 0]),
-                            np.array([self.target.x, self.target.y, 0.05]), np.eye(3).ravel(),
-                            np.array([0.9, 0.15, 0.1, 0.9], dtype=np.float32))
-        scn.ngeom = 1
-
-    def _texts(self, swimmer: Swimmer, layer: BasicStrokeLayer) -> None:
+    def _texts(self, swimmer: Swimmer, layer: BasicStrokeLayer) -> tuple[str, str]:
         com = swimmer.com()
         dist = float(np.hypot(self.target.x - com[0], self.target.y - com[1]))
-        self.handle.set_texts((None, mujoco.mjtGridPos.mjGRID_TOPLEFT,
-                               "stroke\nrate\ntarget\ndistance\nkeys",
-                               f"{layer.stroke.name}\n{layer.rate_hz:.2f} cycles/s\n"
-                               f"({self.target.x:g}, {self.target.y:g}) m\n{dist:.1f} m\n"
-                               "arrows: move target, PgUp/PgDn: rate"))
+        return ("stroke\nrate\ntarget\ndistance\nkeys",
+                f"{layer.stroke.name}\n{layer.rate_hz:.2f} cycles/s\n"
+                f"({self.target.x:g}, {self.target.y:g}) m\n{dist:.1f} m\n"
+                "arrows: move target, PgUp/PgDn: rate, Home: camera")
 
     def close(self) -> None:
-        """Close the window and wait (up to 10 s) until the viewer's thread is done."""
-        self.handle.close()
-        for t in self._threads:
-            t.join(timeout=10.0)
+        """Close the window and wait until the viewer's thread is done."""
+        self.view.close()
