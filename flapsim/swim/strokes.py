@@ -171,6 +171,10 @@ def _pairs(where: str, raw: object) -> tuple[np.ndarray, np.ndarray]:
         raise DataFileError(f"{where}: keys must be [[phase, degrees], ...]") from None
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1 or not np.all(np.isfinite(arr)):
         raise DataFileError(f"{where}: keys must be a non-empty list of [phase, degrees] pairs")
+    outside = arr[(arr[:, 0] < 0.0) | (arr[:, 0] > 1.0), 0]
+    if outside.size:
+        raise DataFileError(f"{where}: a key at phase {outside[0]:g}: phases are fractions of "
+                            "the cycle, 0..1")
     turn = 0.0
     at_one = np.abs(arr[:, 0] - 1.0) < 1e-12
     if np.any(at_one):
@@ -212,7 +216,17 @@ def load_stroke(name_or_path: str) -> Stroke:
     """Parse and check a stroke file (one-line errors naming the bad entry)."""
     path = stroke_path(name_or_path)
     try:
-        raw = tomllib.loads(path.read_text())
+        data = path.read_bytes()
+    except OSError as exc:
+        raise DataFileError(f"cannot read stroke file {path}: {exc.strerror or exc}") from None
+    if b"\0" in data:
+        raise DataFileError(f"{path}: a binary file, not a TOML stroke file")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise DataFileError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
+    try:
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise DataFileError(f"{path}: not valid TOML ({exc})") from None
     return parse_stroke(raw, path)
@@ -234,14 +248,25 @@ def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
     interp = raw.get("interpolation", "pchip")
     if interp not in ("pchip", "linear"):
         raise DataFileError(f"{path}: interpolation must be 'pchip' or 'linear'")
+    for section in ("pose", "keys", "mirror", "perturb"):
+        if not isinstance(raw.get(section, {}), dict):
+            raise DataFileError(f"{path}: [{section}] must be a table, got "
+                                f"{type(raw[section]).__name__}")
     keys: dict[str, tuple] = {}
     for dof, value in raw.get("pose", {}).items():
         if dof not in valid:
             raise DataFileError(f"{path}: [pose] names unknown dof {dof!r}; valid: "
                                 f"{', '.join(sorted(valid))}")
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or not np.isfinite(value):
+            raise DataFileError(f"{path}: [pose] {dof} must be a finite angle in degrees, "
+                                f"got {value!r}")
         keys[dof] = (np.zeros(1), np.array([float(value)]))
     mirror = raw.get("mirror", {})
     keys = _parse_keys(raw.get("keys", {}), mirror, path, "keys", keys)
+    if not keys:
+        raise DataFileError(f"{path}: no keys: a stroke needs [pose] angles or [keys.<joint>] "
+                            "key lists (see the bundled strokes in flapsim/swim/strokes/)")
     perturbations = {}
     for name, spec in raw.get("perturb", {}).items():
         perturbations[name] = _parse_perturbation(name, spec, mirror, path)
