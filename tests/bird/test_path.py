@@ -142,4 +142,42 @@ def test_the_dove_follows_a_level_figure_of_eight(tmp_path):
     js = tmp_path / "e.json"
     assert main(["fly", "--controller", "learned", "--path", str(f), "--json", str(js)]) == 0
     s = json.loads(js.read_text())
-    assert s["completed"] and s["max_path_distance"] < 2.0 and s["Ef_per_wingbeat"] < 0.5
+    assert s["completed"] and s["max_path_distance"] < 2.0
+    # the paper's Table I (10,000 samples, k = 0.5 %): Er 0.062 rad, Eo 0.111 rad, Ef 0.145 m
+    # per wingbeat; the bundled database with LWLR beats these on this level figure of eight
+    # (its Ep, 0.057 m against the paper's 0.039 m, does not: see the README)
+    assert s["Er_per_wingbeat"] <= 0.062
+    assert s["Eo_per_wingbeat"] <= 0.111
+    assert s["Ef_per_wingbeat"] <= 0.145
+
+
+def test_recovery_curve_on_the_path_is_the_path_itself():
+    # a bird on a straight path flying along it at the asked speed: the Hermite curve from its
+    # position and velocity to the look-ahead point and tangent is the straight line, so the
+    # position asked at the end of a wingbeat of dt is p + v dt and the heading is the path's
+    from flapsim.bird.controller import Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget
+
+    h = np.radians(30.0)
+    u = np.array([np.cos(h), np.sin(h), 0.0])
+    path = FlightPath(np.array([[0, 0, 10.0], *(np.array([0, 0, 10.0]) + 50 * u[None])]))
+    trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))  # level, 2.9 deg angle of attack
+    tgt = PathTarget(trim, path, speed=7.0, ki_speed=0.0, ki_altitude=0.0)
+    p = np.array([0, 0, 10.0]) + 5.0 * u
+    v = 7.0 * u
+    tgt.begin(p, v)
+    dt = 0.1075
+    e0 = CycleEnd(None, np.zeros(8), p + v * dt, np.array([1.0, 0, 0, 0]), v, dt, 0.0)
+    tgt(e0)
+    pd, qd = tgt.desired[-1]
+    # tolerance: the closest point is found on 5 cm samples, so the look-ahead point may sit
+    # up to 2.5 cm along the line; its Hermite weight at t = dt (3u^2 - 2u^3, u = dt / 1 s) is
+    # 0.032, i.e. < 1 mm, and it stays on the line (no sideways error at all)
+    np.testing.assert_allclose(pd, p + v * dt, atol=1e-3)
+    assert abs(np.cross(pd - p, u)[2]) < 1e-9
+    # asked attitude: heading 30 deg, pitched by the trim's angle of attack, no bank: it is
+    # the heading rotation followed by the pitch, ||log|| = half the angle of attack
+    assert quat_distance(qd, np.array([np.cos(h / 2), 0, 0, np.sin(h / 2)])) == pytest.approx(
+        0.5 * abs(trim.aoa), abs=1e-9)
+

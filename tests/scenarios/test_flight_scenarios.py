@@ -1,0 +1,158 @@
+"""The scenario registry, the flight tasks' disturbances and judges, and ``flapsim eval``."""
+
+from __future__ import annotations
+
+import json
+
+import mujoco
+import numpy as np
+import pytest
+
+from flapsim import scenarios
+from flapsim.bird.tasks import Forest, PushSpec, Tree
+from flapsim.cli import main
+from flapsim.errors import InputError
+from flapsim.scenarios.flight import min_separation, primary_name
+
+
+def test_the_registry_lists_the_papers_flight_suite_once_each():
+    names = scenarios.names(family="flight")
+    assert len(names) == len(set(names))
+    for needed in ("figure8", "sinusoid", "climb-turn-0", "climb-turn-15", "climb-turn-30",
+                   "climb-turn-45", "forest", "flock", "plucked-3", "plucked-4", "wind-steady",
+                   "wind-breeze", "wind-gusts", *(f"push-{d}" for d in
+                                                  ("front", "back", "left", "right", "up", "down"))):
+        assert needed in names
+    assert "path" not in scenarios.names(all_only=True)  # needs a file: not part of 'all'
+    with pytest.raises(InputError, match="figure8"):
+        scenarios.get("no-such-scenario")
+
+
+def test_a_broken_run_is_a_failed_result_not_an_exception(tmp_path):
+    bad = tmp_path / "foreign.db"
+    bad.write_bytes(b"not a database at all")
+    r = scenarios.run_scenario("wind-gusts", scenarios.EvalOptions(db=str(bad), quick=True))
+    assert r["status"] == "failed" and r["ok"] is False and "foreign.db" in r["reason"]
+
+
+def test_the_paper_counts_plucked_primaries_from_the_outermost():
+    # 10 primaries, p10 outermost: the 2nd, 5th and 8th from the tip are p9, p6 and p3
+    assert [primary_name("l", i) for i in (2, 5, 8)] == ["l_p9", "l_p6", "l_p3"]
+
+
+def test_plucked_feathers_lose_exactly_their_triangles_area():
+    from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.model import Dove, left_feathers
+
+    dove = Dove.load()
+    names = ("l_p9", "l_p6", "l_p3")
+    whole, plucked = DoveFlight(dove), DoveFlight(dove, plucked=names)
+    try:
+        # the feathers' own mesh areas, from the generator (not from the polygon set)
+        lost = sum(f.area for f in left_feathers(dove.params) if f.name in names)
+        assert lost > 0
+        assert whole.polygons.area.sum() - plucked.polygons.area.sum() == pytest.approx(lost, rel=1e-5)
+        assert not set(names) & set(plucked.polygons.labels)
+    finally:
+        whole.close()
+        plucked.close()
+    with pytest.raises(InputError, match="l_p11"):
+        DoveFlight(dove, plucked=("l_p11",))
+
+
+def test_a_push_is_xfrc_applied_for_its_steps_only():
+    # a free box in zero gravity pushed by F for n of 2n steps: v = F n dt / m exactly (the
+    # push's controls carry ctrl and xfrc_applied in mj_getState's own layout)
+    from mujoco import rollout
+
+    from flapsim.bird.cycle import Push, _push_controls
+
+    m = mujoco.MjModel.from_xml_string(
+        '<mujoco><option gravity="0 0 0" timestep="0.001"/><worldbody><body name="b">'
+        '<freejoint/><geom type="box" size=".1 .1 .1" mass="2"/></body></worldbody></mujoco>')
+    d = mujoco.MjData(m)
+    n = 50
+    F = np.array([3.0, -1.0, 2.0])
+    controls, spec = _push_controls(m, np.zeros((2 * n, m.nu)), Push(1, F, n))
+    spec_full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    s0 = np.empty(mujoco.mj_stateSize(m, spec_full))
+    mujoco.mj_getState(m, d, s0, spec_full)
+    states, _ = rollout.rollout(m, d, s0[None], controls[None], control_spec=spec)
+    qvel = states[0, -1, 1 + m.nq:1 + m.nq + 3]
+    np.testing.assert_allclose(qvel, F * n * 0.001 / 2.0, rtol=1e-9)
+
+
+def test_push_directions_turn_with_the_heading():
+    # flying +y (heading 90 deg): front is +y, left is -x, up is +z
+    np.testing.assert_allclose(PushSpec(0, 8.0, "front").world_force(np.pi / 2), [0, 8, 0], atol=1e-12)
+    np.testing.assert_allclose(PushSpec(0, 8.0, "left").world_force(np.pi / 2), [-8, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(PushSpec(0, 8.0, "down").world_force(1.0), [0, 0, -8], atol=1e-12)
+    with pytest.raises(InputError):
+        PushSpec(0, 8.0, "sideways")
+
+
+def test_tree_clearance_is_the_distance_to_trunk_or_crown():
+    t = Tree(0.0, 0.0, height=10.0, trunk_radius=0.2, crown_radius=2.0)
+    f = Forest((t,), bird_radius_m=0.26)
+    # beside the trunk at 5 m height, 3 m from the axis: 3 - 0.2 - 0.26
+    assert f.clearance(np.array([3.0, 0, 5.0]))[0] == pytest.approx(3 - 0.2 - 0.26)
+    # above the crown's centre by 5 m: 5 - 2 - 0.26
+    assert f.clearance(np.array([0.0, 0, 15.0]))[0] == pytest.approx(5 - 2 - 0.26)
+    # inside the crown: negative
+    assert f.clearance(np.array([0.5, 0.5, 10.0]))[0] < 0
+
+
+def test_flock_separation_is_the_closest_approach_at_equal_times():
+    # two birds on crossing straight lines, one 0.5 s late: closest approach of
+    # a(t) = (7t, 0, 0) and b(t) = (7, 7(t - 1.5), 1) is at t = 1.25 s: |(-1.75, 1.75, -1)|
+    t = np.linspace(0, 3, 3001)
+    a = np.stack([7 * t, 0 * t, 0 * t], 1)
+    b = np.stack([7 + 0 * t, 7 * (t - 1.5), 1 + 0 * t], 1)
+    assert min_separation([(t, a), (t, b)]) == pytest.approx(np.sqrt(1.75**2 * 2 + 1), abs=1e-3)
+
+
+@pytest.mark.slow
+def test_eval_runs_a_scenario_and_writes_table_json_and_plot(tmp_path, capsys):
+    js, plots = tmp_path / "e.json", tmp_path / "plots"
+    rc = main(["eval", "--scenario", "wind-gusts", "--quick", "--workers", "1", "--plots", str(plots),
+               "--json", str(js)])
+    s = json.loads(js.read_text())
+    r = s["scenarios"][0]
+    out = capsys.readouterr().out
+    assert "wind-gusts" in out and "Ep m" in out
+    # 20 m straight through two 3 m/s gusts (side, then from above): the bird is carried off
+    # (a 3 m/s side gust for 0.5 s moves still air's bird ~0.75 m) and must come back
+    assert r["status"] == "completed" and rc == 0, r
+    assert r["metrics"]["max_path_distance"] < 3.0
+    assert (plots / "wind-gusts.png").stat().st_size > 10_000
+
+
+def test_eval_cli_errors_are_one_line(tmp_path, capsys):
+    assert main(["eval", "--scenario", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "nope" in err and len(err.strip().splitlines()) == 1
+    assert main(["eval", "--scenario", "path"]) == 2
+    assert "--path" in capsys.readouterr().err
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert main(["eval", "--plots", str(f)]) == 2
+    assert "folder" in capsys.readouterr().err
+    assert main(["eval", "--list", "--json", str(tmp_path / "l.json")]) == 0
+    listed = {r["name"] for r in json.loads((tmp_path / "l.json").read_text())["scenarios"]}
+    assert set(scenarios.names()) <= listed
+
+
+@pytest.mark.slow
+def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path):
+    # an S of two opposite 25 m turns, level (bank atan(49 / (9.81 * 25)) = 11 deg each)
+    a = np.linspace(0, np.pi / 2, 20)
+    first = np.stack([25 * np.sin(a), 25 * (1 - np.cos(a))], 1)
+    second = np.array([50.0, 25.0]) + 25 * np.stack([-np.cos(a), np.sin(a)], 1)[1:]
+    xy = np.vstack([first, second])
+    f = tmp_path / "s.csv"
+    np.savetxt(f, np.column_stack([xy, np.full(len(xy), 10.0)]), delimiter=",", header="x,y,z",
+               comments="")
+    js = tmp_path / "p.json"
+    assert main(["eval", "--path", str(f), "--workers", "1", "--json", str(js)]) == 0
+    r = json.loads(js.read_text())["scenarios"][0]
+    assert r["status"] == "completed" and r["metrics"]["max_path_distance"] < 2.0, r
