@@ -55,11 +55,12 @@ def _heading_deg(xmat: np.ndarray) -> float:
 
 def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.PathLike,
                  fps: float = 30.0, camera: ChaseCamera | None = None, width: int = 640,
-                 height: int = 480) -> int:
+                 height: int = 480, progress: bool = True) -> int:
     """Render ``qpos_frames`` (n, nq) to a video at ``path`` (.mp4, .gif ...); returns frames.
 
     Positions only: each frame runs ``mj_forward`` on a private ``MjData`` (no force
-    providers are registered on it, so nothing is simulated here).
+    providers are registered on it, so nothing is simulated here). Frames stream to the
+    file (memory stays bounded); ``progress`` shows a bar (tqdm, on stderr).
     """
     frames = np.asarray(qpos_frames, dtype=float)
     if frames.ndim != 2 or frames.shape[1] != model.nq:
@@ -70,7 +71,13 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
         raise InputError(f"video {width}x{height} exceeds the model's offscreen buffer "
                          f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}")
     import imageio.v2 as imageio
+    from tqdm import tqdm
 
+    from flapsim.validate import require_gl
+
+    if not 0 < fps <= 1000 or not np.isfinite(fps):
+        raise InputError(f"video frame rate must be > 0 and <= 1000 frames/s, got {fps}")
+    require_gl()
     d = mujoco.MjData(model)
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -92,7 +99,8 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
             writer = imageio.get_writer(str(tmp), fps=fps, macro_block_size=1)
             try:
                 look, heading = None, None
-                for q in frames:
+                for q in tqdm(frames, desc=f"rendering {Path(path).name}", unit="frame",
+                              leave=False, disable=not progress):
                     d.qpos[:] = q
                     mujoco.mj_forward(model, d)
                     if body >= 0:

@@ -175,3 +175,48 @@ def test_sweep_exits_1_when_a_run_failed_and_still_writes_everything(tmp_path, m
     lines = csv.read_text().splitlines()
     assert lines[0].split(",")[-1] == "error" and "diverged" in lines[2]
     assert "1 of 2 runs failed" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("sig, status", [("TERM", 143), ("INT", 130)])
+def test_a_signal_while_rendering_leaves_no_file(sig, status, tmp_path):
+    import signal
+    import time
+
+    cmd = [sys.executable, "-m", "flapsim.cli", "modes", str(ROOT / "creatures" / "loop.xml"),
+           "--video", "x.mp4", "--cycles", "50", "--json", "x.json"]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        t_end = time.monotonic() + 90
+        while not any(p.name.startswith(".x.mp4") for p in tmp_path.iterdir()):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < t_end, "rendering never started"
+            time.sleep(0.05)
+        time.sleep(0.3)  # a few frames into the temporary file
+        proc.send_signal(signal.SIGTERM if sig == "TERM" else signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == status, err
+    assert list(tmp_path.iterdir()) == []  # neither the video, a hidden partial, nor the JSON
+    assert err.strip().splitlines()[-1].startswith("flapsim modes: ")
+
+
+def test_animate_refuses_more_frames_than_it_can_hold(capsys):
+    one_line_error(capsys, cli.main(["animate", "--seconds", "3600", "--fps", "240"]),
+                   "is 864000 frames; at most 100000")
+
+
+def test_modes_on_models_without_a_root(tmp_path, capsys):
+    # a pendulum on a hinge: --fix-root has nothing to fix; its damping makes it overdamped
+    m = tmp_path / "p.xml"
+    m.write_text('<mujoco><worldbody><body><joint name="h" type="hinge" damping="50" '
+                 'stiffness="1"/><geom size=".1" pos="0 0 -.3" mass="1"/></body></worldbody>'
+                 '</mujoco>')
+    one_line_error(capsys, cli.main(["modes", str(m), "--fix-root"]), "no floating root")
+    js = tmp_path / "p.json"
+    assert cli.main(["modes", str(m), "--json", str(js)]) == 0
+    assert "overdamped" in capsys.readouterr().out
+    assert json.loads(js.read_text())["modes"][0]["overdamped"] is True

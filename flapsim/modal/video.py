@@ -67,11 +67,16 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
         ) from None
 
 
-def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float) -> int:
-    """Write RGB frames to an mp4 (ffmpeg from imageio-ffmpeg) or a looping gif."""
+def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float,
+                 total: int | None = None, progress: bool = True) -> int:
+    """Write RGB frames to an mp4 (ffmpeg from imageio-ffmpeg) or a looping gif, streaming
+    (memory stays bounded), with a progress bar of ``total`` frames on stderr."""
     import imageio.v2 as imageio
+    from tqdm import tqdm
 
     p = check_video_path(path)
+    if not (math.isfinite(fps) and 0 < fps <= 1000):
+        raise InputError(f"video frame rate must be > 0 and <= 1000 frames/s, got {fps}")
     count = 0
     with atomic_path(p) as tmp:
         if p.suffix.lower() == ".gif":
@@ -79,7 +84,8 @@ def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: flo
         else:
             writer = imageio.get_writer(tmp, fps=fps, codec="libx264", macro_block_size=8)
         with writer:
-            for frame in frames:
+            for frame in tqdm(frames, total=total, desc=f"rendering {p.name}", unit="frame",
+                              leave=False, disable=not progress):
                 writer.append_data(frame)
                 count += 1
         if count == 0:
@@ -98,6 +104,11 @@ def render_poses(
     track: bool = False,
 ) -> int:
     """Render a sequence of poses (nq each) to a video; ``track`` follows the centre of mass."""
+    from flapsim.validate import require_gl
+
+    if len(poses) == 0:
+        raise InputError("no frames to render")
+    require_gl()
     data = mujoco.MjData(model)
     data.qpos[:] = poses[0]
     mujoco.mj_forward(model, data)
@@ -114,7 +125,7 @@ def render_poses(
             yield renderer.render().copy()
 
     try:
-        return write_frames(path, frames(), fps)
+        return write_frames(path, frames(), fps, total=len(poses))
     finally:
         renderer.close()
 
