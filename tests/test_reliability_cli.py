@@ -220,3 +220,13 @@ def test_modes_on_models_without_a_root(tmp_path, capsys):
     assert cli.main(["modes", str(m), "--json", str(js)]) == 0
     assert "overdamped" in capsys.readouterr().out
     assert json.loads(js.read_text())["modes"][0]["overdamped"] is True
+
+
+def test_the_license_file_matches_pyproject():
+    import tomllib
+
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert meta["license"] == {"text": "Apache-2.0"}
+    text = (ROOT / "LICENSE").read_text()
+    assert "Apache License" in text and "Version 2.0, January 2004" in text
+    assert "END OF TERMS AND CONDITIONS" in text
