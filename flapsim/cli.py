@@ -36,7 +36,7 @@ from flapsim.validate import add_output_arg, check_outputs, guard_gl
 
 # Order is the order ``flapsim --help`` lists them in.
 COMMANDS: tuple[str, ...] = ("fly", "eval", "view", "train", "swim", "sweep", "modes", "creature",
-                             "animate", "demo", "bench")
+                             "animate", "demo", "bench", "list")
 
 
 #: Exit statuses every command shares (each command's ``--help`` lists them).

@@ -230,3 +230,26 @@ def test_the_license_file_matches_pyproject():
     text = (ROOT / "LICENSE").read_text()
     assert "Apache License" in text and "Version 2.0, January 2004" in text
     assert "END OF TERMS AND CONDITIONS" in text
+
+
+def test_list_names_everything_a_command_accepts(tmp_path, capsys):
+    from flapsim.fluid.coefficients import TABLES
+    from flapsim.modal.gaits import GAITS
+
+    js = tmp_path / "l.json"
+    assert cli.main(["list", "--json", str(js)]) == 0
+    data = json.loads(js.read_text())
+    assert {"breaststroke", "crawl", "treading"} <= set(data["strokes"])
+    assert set(data["tables"]) == set(TABLES) and set(data["gaits"]) == set(GAITS)
+    assert {"dove", "swimmer", "loop", "linear", "dog", "human"} <= set(data["models"])
+    assert "forces" in data["benchmarks"]
+    try:
+        from flapsim.scenarios import names
+    except ImportError:
+        assert data["scenarios"] == {}
+    else:
+        assert set(data["scenarios"]) == set(names())
+    capsys.readouterr()
+    assert cli.main(["list", "gaits"]) == 0
+    out = capsys.readouterr().out
+    assert "trot" in out and "strokes:" not in out
