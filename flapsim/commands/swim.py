@@ -45,6 +45,9 @@ def add_target_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--moving-target", metavar="X,Y,VX,VY",
                    type=vector(("position", "position", "velocity", "velocity"), 4),
                    help="swim after a point starting at X,Y [m] moving at VX,VY [m/s]")
+    add_input_arg(g, "--trajectory", metavar="FILE",
+                  help="swim after a target moving along a timed trajectory: a text file of "
+                       "'t, x, y' or 't, x, y, z' lines [s, m]")
     g.add_argument("--heading", type=quantity("angle_deg"), metavar="DEG",
                    help="hold this heading [deg from +x towards +y] (default: hold the start "
                         "heading)")
@@ -84,9 +87,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="watch and steer in the MuJoCo viewer, in real time: arrow keys move the "
                         "target (default 10 m ahead), PgUp/PgDn change the stroke rate; needs a "
                         "display")
+    p.add_argument("--layers", choices=("basic", "cycle", "all"), default=None,
+                   help="control layers (the paper's Fig. 2): basic = the stroke alone; cycle = "
+                        "+ the per-cycle layer (steering); all = + the continuous layer (palm "
+                        "and reach rules, treading's balance). Default all")
     p.add_argument("--no-feedback", action="store_true",
-                   help="run the basic stroke layer alone: ignore the stroke's feedback rules "
-                        "(treading water then tips over)")
+                   help="the same as --layers basic (treading water then tips over)")
+    p.add_argument("--calibrate", action="store_true",
+                   help="instead of swimming: make the stroke's per-cycle weight tables by "
+                        "pre-simulation in still water (parallel, resumable; written next to "
+                        "the stroke file, or to --table)")
+    p.add_argument("--table", metavar="FILE.json", default=None,
+                   help="per-cycle calibration table to use (or, with --calibrate, to write); "
+                        "default: <stroke>.cycle.json next to the stroke file")
+    p.add_argument("--workers", type=int, default=None,
+                   help="--calibrate: parallel processes (default: one per CPU core)")
     p.add_argument("--timestep", type=quantity("timestep"), default=None,
                    help="physics step [s] (default 0.004)")
     add_output_arg(p, "--video", kinds=(".mp4",), renders=True, nargs="?", const="swim.mp4",
@@ -124,6 +139,10 @@ def target_from_args(args: argparse.Namespace):
         return load_path(args.path, args.lookahead)
     if args.figure8 is not None:
         return figure_eight(args.figure8, lookahead=args.lookahead)
+    if getattr(args, "trajectory", None) is not None:
+        from flapsim.swim.targets import load_trajectory
+
+        return load_trajectory(args.trajectory)
     if args.heading is not None:
         if not np.isfinite(args.heading):
             raise InputError("--heading must be a finite angle in degrees")
@@ -131,13 +150,57 @@ def target_from_args(args: argparse.Namespace):
     return None
 
 
+def _layers(args: argparse.Namespace) -> str:
+    if args.no_feedback and args.layers not in (None, "basic"):
+        raise InputError(f"--no-feedback means --layers basic; it contradicts --layers {args.layers}")
+    return "basic" if args.no_feedback else (args.layers or "all")
+
+
+def calibrate_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
+    """``flapsim swim --calibrate --stroke NAME``: the per-cycle tables (see
+    :func:`flapsim.swim.cycle.calibrate`)."""
+    import os
+
+    from flapsim.swim.cycle import calibrate
+
+    if args.table is not None and not str(args.table).endswith(".json"):
+        raise InputError(f"--table must name a .json file, got {args.table!r}")
+    workers = args.workers or os.cpu_count() or 1
+    if workers < 1:
+        raise InputError("--workers must be >= 1")
+    base = SwimmerParams()
+    changed = {k: getattr(params, k) for k in params.__dataclass_fields__
+               if getattr(params, k) != getattr(base, k)}
+    tables, out = calibrate(args.stroke, args.table, workers=workers, params=changed,
+                            progress=True)
+    print(f"per-cycle tables for {args.stroke} written to {out}")
+    rows = {}
+    for mode, t in tables.items():
+        print(f"  layers {mode}: turn per cycle at weight {t.weights[-1]:g} [deg], at "
+              + ", ".join(f"{v:.2f}" for v in t.speeds) + " m/s")
+        for name, a in t.angles.items():
+            print(f"    {name:11s} " + "  ".join(f"{x:6.1f}" for x in np.degrees(a[:, -1])))
+        rows[mode] = t.to_dict()
+    return {"stroke": args.stroke, "table": str(out), "tables": rows}
+
+
 def run(args: argparse.Namespace) -> dict:
+    layers = _layers(args)
     kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max}
     for name, key in (("density", "water_density"), ("lungs", "lung_volume_l"),
                       ("friction", "friction"), ("timestep", "timestep")):
         if getattr(args, name) is not None:
             kw[key] = getattr(args, name)
     params = SwimmerParams(**kw)
+    if args.calibrate:
+        return calibrate_command(args, params)
+    cycle_table = None
+    if args.table is not None:
+        from flapsim.swim.cycle import load_table
+        from flapsim.swim.strokes import load_stroke
+
+        cycle_table = load_table(load_stroke(args.stroke), args.table,
+                                 layers="all" if layers == "all" else "cycle")
     video = args.video
     target = target_from_args(args)
     flow = _flow(args)
@@ -154,10 +217,10 @@ def run(args: argparse.Namespace) -> dict:
         if target is not None and not isinstance(target, Point):
             raise InputError("the viewer steers for a point you move: use --target X,Y (or "
                              "nothing: 10 m ahead), not --path/--figure8/--heading")
-        steers = any("heading_error" in p.gains
-                     for p in load_stroke(args.stroke).perturbations.values())
+        steers = any(k.startswith("yaw") for k in load_stroke(args.stroke).cycle)
         marker = target if target is not None else Point(10.0, 0.0)
-        target = marker if steers and not args.no_feedback else None
+        # the target stays the swimmer's even at --layers basic: a key switches layers
+        target = marker if steers else None
         swimmer = Swimmer(params, flow)
         viewer = SwimViewer(swimmer, marker)
     with contextlib.ExitStack() as stack:
@@ -174,8 +237,9 @@ def run(args: argparse.Namespace) -> dict:
         try:
             result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
                           current=current, video_fps=args.fps if video else 0.0,
-                          progress=viewer is None, feedback=not args.no_feedback, target=target,
-                          swimmer=swimmer, control_hook=viewer, on_frame=on_frame)
+                          progress=viewer is None, layers=layers, target=target,
+                          swimmer=swimmer, control_hook=viewer, on_frame=on_frame,
+                          cycle_table=cycle_table)
         finally:
             if viewer is not None:
                 viewer.close()
@@ -231,8 +295,17 @@ def run(args: argparse.Namespace) -> dict:
                     is not None else f"{100 * s['path_completed_fraction']:.0f}% done")
             print(f"  path             {t['name']} ({t['length_m']:.1f} m): {done}; distance "
                   f"from it {s['path_error_mean_m']:.2f} m mean, {s['path_error_max_m']:.2f} m max")
-        else:
+        elif t["kind"] == "heading":
             print(f"  heading          held at {t['heading_deg']:.1f} deg")
+        else:
+            print(f"  target           {t['kind']}")
+        if "distance_to_target_mean_m" in s:
+            reached = (f"first within {t.get('radius_m', 0.5):g} m at {s['time_to_reach_s']:.1f} s"
+                       if s["time_to_reach_s"] is not None else "never within reach")
+            print(f"  to target        {s['distance_to_target_mean_m']:.2f} m mean, "
+                  f"{s['distance_to_target_max_m']:.2f} m max; {reached}")
+        if "heading_error_mean_deg" in s:
+            print(f"  heading error    {s['heading_error_mean_deg']:.1f} deg mean")
     for name, w in (s.get("feedback_weights") or {}).items():
         print(f"    {name:14s} weight mean {w['mean']:+.2f}, |w| {w['mean_abs']:.2f}, "
               f"saturated {100 * w['saturated_fraction']:.0f}% of the time")

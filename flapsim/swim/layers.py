@@ -1,14 +1,19 @@
-"""Control layers.
+"""Control layers (the paper's Fig. 2).
 
 Layer 1, the basic stroke layer (:class:`BasicStrokeLayer`): cycle through a stroke's
 keyframed pose graph at a stroke rate and drive the PD muscles towards the
 interpolated pose.
 
-On top of it, :class:`FeedbackLayer` blends the stroke's named perturbations (offset
-cycles, see :mod:`flapsim.swim.strokes`) into the targets with weights that feedback
-rules set from the swimmer's state 50 times a second: the paper's continuous layer,
-used by treading water to stay upright and in place. (The paper's per-cycle layer
-with pre-simulated weight tables, and target following, are not implemented yet.)
+Layer 2, the per-cycle perturbation layer: :class:`flapsim.swim.cycle.CycleLayer`
+re-blends the stroke's six ``[cycle.*]`` sequences into the tables at the start of
+every cycle (:meth:`BasicStrokeLayer.set_tables`).
+
+Layer 3, the continuous perturbation layer, applied 50 times a second:
+:class:`flapsim.swim.continuous.HandRules` (the paper's palm-orientation and arm-reach
+rules, as offsets on single joints, :attr:`BasicStrokeLayer.extra`) and
+:class:`FeedbackLayer`, which blends the stroke's named perturbations (offset cycles,
+see :mod:`flapsim.swim.strokes`) with weights that feedback rules set from the
+swimmer's state: treading water's balance.
 """
 
 from __future__ import annotations
@@ -51,6 +56,18 @@ class BasicStrokeLayer:
         self._tq = self.tables.q.reshape(-1)
         self._tv = self.tables.v.reshape(-1)
         self._n = self.tables.q.shape[0]
+        #: extra motor torque [N m] per actuator added after the PD (and clipped to the
+        #: motor's range): the continuous layer's joint offsets, kp x offset
+        self.extra = np.zeros(swimmer.model.nu)
+        self.extra_on = False
+        #: the stroke's own tables, untouched by :meth:`set_tables` (which writes into
+        #: :attr:`tables`, the arrays the PD reads)
+        self.base_tables = StrokeTables(self.tables.q.copy(), self.tables.v.copy(), stroke)
+
+    def set_tables(self, tables: StrokeTables) -> None:
+        """Swim on ``tables`` (same shape) from now on: the per-cycle layer's blend."""
+        self._tq[:] = tables.q.reshape(-1)
+        self._tv[:] = tables.v.reshape(-1)
 
     def start_pose(self, phase: float = 0.0) -> np.ndarray:
         """Target joint positions (non-root qpos) at ``phase``."""
@@ -66,6 +83,8 @@ class BasicStrokeLayer:
         pd_controls(data.qpos, j.types, j.qadr, j.dadr, j.actuator, self._tq, self._tv,
                     self._n, self.phase, self.rate_hz, self.kp, self.kv, self.lo, self.hi,
                     data.ctrl, self.target)
+        if self.extra_on:
+            np.clip(data.ctrl + self.extra, self.lo, self.hi, out=data.ctrl)
         self.phase += self.rate_hz * dt
         if self.phase >= 1.0:
             self.phase -= 1.0
@@ -137,6 +156,12 @@ class FeedbackLayer:
         self.weights = {k: 0.0 for k in self.names}
         self._last_t: float | None = None
         self.history: list[list[float]] = []
+
+    def rebase(self, tables: StrokeTables) -> None:
+        """The basic tables changed (the per-cycle layer's blend): blend the feedback
+        perturbations onto ``tables`` from now on. Call before :meth:`update`."""
+        self._q0 = tables.q[:, self._cq].copy()
+        self._v0 = tables.v[:, self._cv].copy()
 
     def reset(self, reference: np.ndarray | None = None) -> None:
         """Start over: weights back to 0, the smoothing restarted, and the reference

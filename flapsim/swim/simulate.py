@@ -19,12 +19,64 @@ from flapsim.sim.callbacks import DISPATCHER
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.strokes import Stroke, load_stroke
-from flapsim.swim.targets import Heading, Path, Point
+from flapsim.swim.targets import Heading, Path, Point, Trajectory, Waypoints
 
 log = logging.getLogger(__name__)
 
 SAMPLE_HZ = 50.0  # recorded states per simulated second
 SETTLE_CYCLES = 2  # cycles left out of the steady-state averages (start from rest)
+#: the control layers a swim can run (the paper's Fig. 2): the basic stroke alone; with
+#: the per-cycle layer; with the per-cycle and the continuous layers
+LAYERS = ("basic", "cycle", "all")
+LAYER_NAMES = {"basic": ["basic stroke"], "cycle": ["basic stroke", "per-cycle"],
+               "all": ["basic stroke", "per-cycle", "continuous"]}
+
+
+class LayerStack:
+    """The layers above the basic stroke, switchable while swimming (:meth:`set_mode`,
+    e.g. from the viewer). ``update`` runs them at the control rate: the per-cycle layer
+    (once per cycle), then the continuous layer (the stroke's feedback rules and the
+    hand rules)."""
+
+    def __init__(self, basic: BasicStrokeLayer, mode: str, cycle=None, feedback=None,
+                 hands=None) -> None:
+        self.basic = basic
+        self.cycle = cycle
+        self.feedback = feedback
+        self.hands = hands
+        self.mode = "basic"
+        self.switches: list[dict] = []
+        self.set_mode(mode)
+
+    def set_mode(self, mode: str, t: float | None = None) -> None:
+        """Switch to ``mode`` (one of :data:`LAYERS`); the stroke's own tables come back
+        and the new layers take over at their next update."""
+        if mode not in LAYERS:
+            raise InputError(f"layers must be one of {', '.join(LAYERS)}, got {mode!r}")
+        if mode == self.mode and self.switches:
+            return
+        self.mode = mode
+        base = self.basic.base_tables
+        self.basic.set_tables(base)
+        self.basic.extra[:] = 0.0
+        self.basic.extra_on = mode == "all" and self.hands is not None
+        if self.cycle is not None:
+            self.cycle.reset()
+        if self.feedback is not None:
+            self.feedback.rebase(base)
+        if self.hands is not None:
+            for h in self.hands.hands:
+                h["off"][:] = 0.0
+        self.switches.append({"t": t, "layers": mode})
+
+    def update(self, data: mujoco.MjData) -> None:
+        if self.mode in ("cycle", "all") and self.cycle is not None:
+            self.cycle.update(data)
+        if self.mode == "all":
+            if self.feedback is not None:
+                self.feedback.update(data)
+            if self.hands is not None:
+                self.hands.update(data)
 
 
 @dataclass
@@ -48,6 +100,16 @@ class SwimResult:
     #: what the swimmer steered for (flapsim.swim.targets), if anything
     target: object | None = None
     frames: list = field(default_factory=list, repr=False)
+    #: the layers swum (one of LAYERS; the last one when switched while swimming)
+    layers: str = "all"
+    #: the per-cycle layer's weights (CycleLayer.summary) and the hand rules' offsets
+    cycle: dict | None = None
+    hands: dict | None = None
+    #: at each sample: where the target was (n, 3) [m] (NaN where it has no position),
+    #: the heading it asked for and the body line's heading [rad]
+    target_xyz: np.ndarray | None = field(default=None, repr=False)
+    aim_heading: np.ndarray | None = field(default=None, repr=False)
+    body_yaw: np.ndarray | None = field(default=None, repr=False)
 
     def _steady(self) -> np.ndarray:
         t0 = SETTLE_CYCLES / self.rate_hz if self.seconds > 3 * SETTLE_CYCLES / self.rate_hz else 0
@@ -122,6 +184,33 @@ class SwimResult:
             out["path_completed_s"] = float(self.times[done[0]]) if len(done) else None
         return out
 
+    def tracking(self) -> dict:
+        """Distance to the target (3D for targets with a depth) and heading error, after
+        the first cycles; distance swum along the track; when the target was first
+        within its radius. Empty without a target that has a position."""
+        out: dict = {}
+        if self.aim_heading is not None and len(self.aim_heading):
+            sel = self._steady()
+            err = np.abs((self.aim_heading - self.body_yaw + np.pi) % (2 * np.pi) - np.pi)
+            out["heading_error_mean_deg"] = float(np.degrees(err[sel].mean()))
+        xy = self.com[:, :2]
+        out["distance_swum_m"] = float(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum())
+        if self.target_xyz is None or not np.all(np.isfinite(self.target_xyz)):
+            return out
+        t = self.target
+        full = bool(getattr(t, "is_3d", False))
+        diff = self.target_xyz - self.com
+        dist = np.linalg.norm(diff if full else diff[:, :2], axis=1)
+        sel = self._steady()
+        out["target_distance_3d"] = full
+        out["distance_to_target_mean_m"] = float(dist[sel].mean())
+        out["distance_to_target_max_m"] = float(dist[sel].max())
+        out["distance_to_target_end_m"] = float(dist[-1])
+        r = float(getattr(t, "radius", 0.5))
+        hit = np.flatnonzero(dist <= r)
+        out["time_to_reach_s"] = float(self.times[hit[0]]) if len(hit) else None
+        return out
+
     @property
     def track_speed(self) -> float:
         """Mean horizontal speed along the centre of mass's track after the first cycles,
@@ -169,8 +258,12 @@ class SwimResult:
             "lateral_drift_m": float(self.com[-1, 1] - self.com[0, 1]),
             "muscle_power_mean_w": float(self.power[sel].mean()) if self.power is not None
             else None,
-            "layers": ["basic stroke"] + (["feedback"] if self.feedback is not None else []),
+            "layers": LAYER_NAMES[self.layers],
+            "layers_mode": self.layers,
             "feedback_weights": self.feedback,
+            "cycle_weights": self.cycle,
+            "hand_rules": self.hands,
+            **self.tracking(),
             **self._target_summary(),
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
@@ -190,36 +283,69 @@ def swim(
     progress: bool = False,
     swimmer: Swimmer | None = None,
     feedback: bool = True,
-    target: Heading | Point | Path | None = None,
+    target: Heading | Point | Path | Waypoints | Trajectory | None = None,
     control_hook: Callable[[Swimmer, BasicStrokeLayer], bool] | None = None,
     on_frame: Callable[[np.ndarray], None] | None = None,
+    layers: str | None = None,
+    rules: tuple[str, ...] | None = None,
+    cycle_table: object | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
     ``video_fps`` > 0 also renders frames (offscreen) into ``result.frames``, or hands
     each to ``on_frame(rgb)`` (e.g. a video writer) so that memory stays bounded.
-    ``feedback``: run the stroke's feedback rules (its ``[perturb.*]`` sections, if
-    any) at 50 Hz; False = the basic stroke layer alone.
-    ``target``: steer for a heading, a point or along a path (flapsim.swim.targets);
-    needs a stroke with a feedback rule on ``heading_error`` (crawl, breaststroke).
+    ``layers`` (:data:`LAYERS`): "basic" = the stroke alone; "cycle" = with the
+    per-cycle layer (steering for ``target``, or holding the start heading, through
+    the stroke's ``[cycle.*]`` sequences and its calibration table); "all" (default) =
+    also the continuous layer: the hand rules ``rules`` (default both, see
+    :mod:`flapsim.swim.continuous`) and the stroke's feedback rules (its
+    ``[perturb.*]`` sections: treading water's balance) at 50 Hz. ``feedback=False``
+    (older API) means "basic". ``cycle_table``: a :class:`flapsim.swim.cycle.CycleTable`
+    instead of the stroke's own.
+    ``target``: a heading, a point (with a depth: 3D), waypoints, a timed trajectory or
+    a path (flapsim.swim.targets).
     ``control_hook(swimmer, layer)`` runs at every control step (50 Hz) after the
-    layers; returning False ends the swim early (the viewer uses it).
+    layers; returning False ends the swim early (the viewer uses it; ``layer.stack``
+    is the :class:`LayerStack`, whose mode it may switch).
     """
+    from flapsim.swim.continuous import RULES, HandRules
+    from flapsim.swim.cycle import CycleLayer, load_table
+
+    if layers is None:
+        layers = "all" if feedback else "basic"
+    if layers not in LAYERS:
+        raise InputError(f"layers must be one of {', '.join(LAYERS)}, got {layers!r}")
     st = stroke if isinstance(stroke, Stroke) else load_stroke(stroke)
     sw = swimmer or Swimmer(params, flow)
     layer = BasicStrokeLayer(sw, st, rate_hz)
     sw.reset(st.posture, qpos_joints=layer.start_pose(0.0))
     sw.set_current(np.asarray(current, dtype=float))
-    if target is not None:
-        steers = any("heading_error" in p.gains for p in st.perturbations.values())
-        if not steers:
-            raise InputError(f"stroke {st.name!r} cannot steer: none of its [perturb.*] "
-                             "rules uses heading_error (crawl and breaststroke can)")
-        if not feedback:
-            raise InputError("steering to a target needs the feedback layer (drop --no-feedback)")
-        if isinstance(target, Path):
-            target.reset()
-    fb = FeedbackLayer(layer, target=target) if (feedback and st.perturbations) else None
+    if target is not None and hasattr(target, "reset"):
+        target.reset()
+    steering = [k for k in st.cycle if k.startswith("yaw")]
+    if target is not None and layers != "basic" and not steering:
+        raise InputError(f"stroke {st.name!r} cannot steer: it has no [cycle.yaw_*] sequences "
+                         "(crawl, breaststroke and treading have)")
+    fb = FeedbackLayer(layer, target=target) if st.perturbations else None
+    cyc = None
+    if st.cycle:
+        try:
+            table = cycle_table if cycle_table is not None else \
+                load_table(st, layers="all" if layers == "all" else "cycle")
+            cyc = CycleLayer(layer, table, target=target, feedback=fb)
+        except InputError:
+            if target is not None and layers != "basic":
+                raise
+            log.warning("stroke %s has no per-cycle calibration table: the per-cycle layer is "
+                        "off", st.name)
+    hands = HandRules(layer, target, RULES if rules is None else tuple(rules)) \
+        if (rules is None or len(rules)) else None
+    stack = LayerStack(layer, layers, cyc, fb, hands)
+    layer.stack = stack
+    aim: list[float] = []
+    yaw: list[float] = []
+    txyz: list = []
+    head_body = sw.body["head"]
     m, d = sw.model, sw.data
     dt = m.opt.timestep
     nsteps = int(round(seconds / dt))
@@ -254,6 +380,12 @@ def swim(
                     head.append(d.geom_xpos[head_gid].copy())
                     qd = d.qvel[6:]
                     power.append(float((d.qfrc_actuator[6:] - damp * qd) @ qd))
+                    line = d.xpos[head_body] - d.xpos[pelvis]
+                    yaw.append(math.atan2(line[1], line[0]))
+                    if target is not None:
+                        aim.append(target.heading(com[-1][:2].copy(), np.zeros(2), float(d.time)))
+                        pos = getattr(target, "position", None)
+                        txyz.append(pos(float(d.time)) if pos is not None else np.full(3, np.nan))
                 if renderer is not None and i % frame_every == 0:
                     cam.lookat[:] = d.subtree_com[pelvis]
                     renderer.update_scene(d, camera=cam)
@@ -265,8 +397,7 @@ def swim(
                     break
                 if i % control_every == 0:
                     sw.update_flow()
-                    if fb is not None:
-                        fb.update(d)
+                    stack.update(d)
                     if bar is not None and i:
                         bar.update(control_every)
                     if control_hook is not None and not control_hook(sw, layer):
@@ -276,6 +407,10 @@ def swim(
                             com.append(d.subtree_com[pelvis].copy())
                             head.append(d.geom_xpos[head_gid].copy())
                             power.append(power[-1])
+                            yaw.append(yaw[-1])
+                            if target is not None:
+                                aim.append(aim[-1])
+                                txyz.append(txyz[-1])
                         break
                 layer.apply(d, dt)
                 mujoco.mj_step(m, d)
@@ -291,7 +426,13 @@ def swim(
     return SwimResult(st.name, nsteps * dt, layer.rate_hz, layer.cycles, np.asarray(times),
                       np.asarray(com), np.asarray(head), wall, sw.params.water_level,
                       power=np.asarray(power), frames=frames,
-                      feedback=fb.summary() if fb is not None else None, target=target)
+                      feedback=fb.summary() if (fb is not None and stack.mode == "all") else None,
+                      target=target, layers=stack.mode,
+                      cycle=cyc.summary() if (cyc is not None and stack.mode != "basic") else None,
+                      hands=hands.summary() if (hands is not None and stack.mode == "all") else None,
+                      target_xyz=np.asarray(txyz) if target is not None else None,
+                      aim_heading=np.asarray(aim) if target is not None else None,
+                      body_yaw=np.asarray(yaw))
 
 
 #: MuJoCo's divergence warnings: it resets a diverged state (finite again) and only counts

@@ -24,9 +24,23 @@ does ("key poses are defined for each joint separately"), in degrees::
     [perturb.lean.keys.shoulder_l]  # offsets [deg] added to the keys at weight w = 1
     flex = [[0.0, 10], [0.5, -10]]
 
-Perturbations are the paper's layers 2-3: named offset cycles (mirrored like the keys)
-blended into the stroke with weights that a feedback rule sets from the swimmer's
-state (signals: :data:`flapsim.swim.feedback.SIGNALS`).
+Perturbations are named offset cycles (mirrored like the keys) blended into the
+stroke with weights that a feedback rule sets from the swimmer's state 50 times a
+second (signals: :data:`flapsim.swim.feedback.SIGNALS`): continuous-layer rules such as
+treading water's balance.
+
+The paper's per-cycle layer (its sec. 4.3) uses up to six sequences, offsets relative to
+the basic stroke like the perturbations but without a feedback rule, named by the
+rotation they make::
+
+    [cycle.yaw_left]          # pitch_up, pitch_down, yaw_left, yaw_right,
+    description = "..."       # roll_left (left side down), roll_right
+    [cycle.yaw_left.keys.neck]
+    bend = [[0.0, 40]]
+
+At the start of every cycle :class:`flapsim.swim.cycle.CycleLayer` scales them by
+weights read from the stroke's calibration table (``<name>.cycle.json``, made by
+``flapsim swim --calibrate``).
 
 Anatomical dofs (standing frame: x anterior, y left, z up; positive as named):
 lumbar/thoracic/neck: flex (forward), bend (to the left), twist (to the left);
@@ -51,6 +65,14 @@ from flapsim.swim.model import JointInfo
 
 STROKE_DIR = Path(__file__).resolve().parent / "strokes"
 STROKES = ("breaststroke", "crawl", "treading")
+#: the per-cycle layer's sequence names -> (rotation axis, sign of the change it makes
+#: in the angle of :func:`flapsim.swim.cycle.attitude`: yaw + = left, pitch + = up,
+#: roll + = left side up)
+CYCLE_SEQUENCES: dict[str, tuple[str, int]] = {
+    "yaw_left": ("yaw", 1), "yaw_right": ("yaw", -1),
+    "pitch_up": ("pitch", 1), "pitch_down": ("pitch", -1),
+    "roll_left": ("roll", -1), "roll_right": ("roll", 1),
+}
 
 _BALL_LIMB = ("flex", "abd", "rot")
 #: anatomical joint -> (kind, mujoco joint(s), dof names, signs)
@@ -116,8 +138,10 @@ class Stroke:
     description: str = ""
     #: file it came from
     path: str = ""
-    #: named perturbations (layers 2-3), empty for a plain keyframed stroke
+    #: named perturbations with feedback rules (continuous layer), may be empty
     perturbations: dict = field(default_factory=dict)
+    #: the per-cycle layer's sequences (:data:`CYCLE_SEQUENCES` names), may be empty
+    cycle: dict = field(default_factory=dict)
 
     @property
     def rate_hz(self) -> float:
@@ -130,8 +154,8 @@ class Stroke:
         out = _curve(self.keys.get(dof), phase, self.interpolation)
         for name, w in (weights or {}).items():
             if w != 0.0:
-                out = out + w * _curve(self.perturbations[name].keys.get(dof), phase,
-                                       self.interpolation)
+                p = self.perturbations.get(name) or self.cycle[name]
+                out = out + w * _curve(p.keys.get(dof), phase, self.interpolation)
         return out
 
 
@@ -270,8 +294,23 @@ def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
     perturbations = {}
     for name, spec in raw.get("perturb", {}).items():
         perturbations[name] = _parse_perturbation(name, spec, mirror, path)
+    cycle = {}
+    table = raw.get("cycle", {})
+    if not isinstance(table, dict):
+        raise DataFileError(f"{path}: [cycle] must be a table of sequences")
+    for name, spec in table.items():
+        if name not in CYCLE_SEQUENCES:
+            raise DataFileError(f"{path}: unknown per-cycle sequence [cycle.{name}]; valid: "
+                                f"{', '.join(CYCLE_SEQUENCES)}")
+        if isinstance(spec, dict) and ("feedback" in spec or "smooth_s" in spec):
+            raise DataFileError(f"{path}: [cycle.{name}] takes keys, mirror and description; "
+                                "its weights come from the calibration table, not a feedback rule")
+        cycle[name] = _parse_perturbation(name, spec, mirror, path, section="cycle")
+    clash = set(cycle) & set(perturbations)
+    if clash:
+        raise DataFileError(f"{path}: {sorted(clash)} named both in [perturb] and [cycle]")
     return Stroke(str(raw.get("name", Path(path).stem)), period, posture, interp, keys,
-                  str(raw.get("description", "")), str(path), perturbations)
+                  str(raw.get("description", "")), str(path), perturbations, cycle)
 
 
 def _parse_keys(table: object, mirror: dict, path: str | Path, where: str,
@@ -308,11 +347,11 @@ def _parse_keys(table: object, mirror: dict, path: str | Path, where: str,
     return keys
 
 
-def _parse_perturbation(name: str, spec: object, mirror: dict, path: str | Path
-                        ) -> Perturbation:
+def _parse_perturbation(name: str, spec: object, mirror: dict, path: str | Path,
+                        section: str = "perturb") -> Perturbation:
     from flapsim.swim.feedback import SIGNALS
 
-    where = f"perturb.{name}"
+    where = f"{section}.{name}"
     if not isinstance(spec, dict):
         raise DataFileError(f"{path}: [{where}] must be a table")
     unknown = set(spec) - {"keys", "feedback", "description", "mirror", "smooth_s"}

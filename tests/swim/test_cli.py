@@ -17,7 +17,7 @@ def test_swim_command_writes_json_and_track(tmp_path, capsys):
     assert rc == 0
     s = json.loads(out_json.read_text())
     assert s["command"] == "swim" and s["stroke"] == "crawl"
-    assert s["target"]["kind"] == "path" and s["layers"] == ["basic stroke", "feedback"]
+    assert s["target"]["kind"] == "path" and s["layers"] == ["basic stroke", "per-cycle", "continuous"]
     # 4 s at 50 samples/s, from rest: a crawler is under way (measured 0.6 m/s average)
     assert 0.3 < s["track_speed_m_s"] < 2.0
     z = np.load(out_npz)
@@ -30,7 +30,7 @@ def test_swim_command_writes_json_and_track(tmp_path, capsys):
     (["--target", "1,2,3"], "two finite"),
     (["--path", "/no/such/path.csv"], "does not exist"),
     (["--out", "track.txt"], ".npz"),
-    (["--stroke", "treading", "--target", "1,0"], "cannot steer"),
+    (["--no-feedback", "--layers", "cycle"], "contradicts"),
     (["--stroke", "butterfly"], "unknown stroke"),
     (["--seconds", "-1"], "--seconds"),
 ])

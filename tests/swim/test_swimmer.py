@@ -90,7 +90,7 @@ def test_treading_keeps_the_head_above_water():
     r = swim("treading", 20.0).summary()
     assert r["head_height_min_m"] > 0.0
     assert r["head_horizontal_drift_max_m"] < 0.3
-    assert r["layers"] == ["basic stroke", "feedback"]
+    assert r["layers"] == ["basic stroke", "per-cycle", "continuous"]
     # the rules correct within their range: neither weight sits at its +-1 limit
     for name in ("lean", "sway"):
         assert r["feedback_weights"][name]["saturated_fraction"] < 0.05
