@@ -170,10 +170,15 @@ def trim_of_base_flight(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig | None
 
 
 def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_rate: float,
-                 S_now: np.ndarray | None = None, settle_s: float = 0.2) -> np.ndarray:
+                 S_now: np.ndarray | None = None, settle_s: float = 0.2,
+                 wind: np.ndarray | None = None) -> np.ndarray:
     """S at the end of a wingbeat flying at ``speed`` along (``heading``, ``climb``) and
     turning at ``turn_rate`` (rad/s, + left) in a coordinated turn: banked by
     atan(v omega / g) toward the inside, nose ``trim.aoa`` above the flight path.
+
+    ``wind`` (world, m/s): the heading, climb and speed then describe the velocity through
+    the AIR, which the body's attitude follows (a bird crabs into a crosswind); S carries
+    the body-frame velocity over the ground, as the reduced state measures it.
 
     The angular velocity asked is the trim's, plus the turn rate, plus the rates that would
     take the pitch and roll of ``S_now`` (where the reference wingbeat would leave the bird)
@@ -191,6 +196,8 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
     del mujoco
     v = speed * np.array([np.cos(climb) * np.cos(heading), np.cos(climb) * np.sin(heading),
                           np.sin(climb)])
+    if wind is not None:
+        v = v + np.asarray(wind, float)
     w_body = trim.S[5:8] + R.T @ np.array([0.0, 0.0, turn_rate])
     from flapsim.bird.flight import pitch_roll
 

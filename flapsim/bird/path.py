@@ -188,6 +188,10 @@ class PathTarget:
     """Running integrals of (speed, height) errors."""
     desired: list = field(default_factory=list)
     """(position, quaternion) asked at the end of each wingbeat, for the evaluation."""
+    wind: object = None
+    """``wind(position, t) -> (3,)`` world air velocity the bird feels (None: still air):
+    the path's ground track is then flown with the airspeed ``speed`` along the air-relative
+    direction that makes it good (crabbing into a crosswind)."""
     anchor: str = "start"
     """Where the recovery curve starts: ``start`` (the bird's position and velocity when the
     wingbeat begins, as the paper says; set by :meth:`begin`) or ``predicted`` (where the
@@ -219,20 +223,30 @@ class PathTarget:
         t_t = self.path.tangent(s_t) * max(speed_now, 1.0)
         T = self.lookahead_s
         pd, vd, ad = hermite(p, v, p_t, t_t, T, min(t_end, T))
+        w = (np.zeros(3) if self.wind is None
+             else np.asarray(self.wind(p, float(e0.snapshot.physics[0])), float))
+        speed_now = float(np.linalg.norm(v - w))  # airspeed
         e_v = self.speed - speed_now
         e_z = float(self.path.point(self.s)[2] - p[2])
         # anti-windup: the integrals may ask at most 2 m/s of speed and 1 m/s of climb
         lim = np.array([2.0 / max(self.ki_speed, 1e-9), 1.0 / max(self.ki_altitude, 1e-9)])
         self.integrals = np.clip(self.integrals + dt * np.array([e_v, e_z]), -lim, lim)
         speed = self.speed + self.ki_speed * self.integrals[0]
-        heading = float(np.arctan2(vd[1], vd[0]))
-        vz = float(vd[2]) + self.ki_altitude * self.integrals[1]
+        # the ground track asked (vd's direction), flown at airspeed ``speed``: ground speed s
+        # along the unit track d with |s d - w| = speed
+        d = vd / max(float(np.linalg.norm(vd)), 1e-9)
+        dw = float(d @ w)
+        s_ground = dw + np.sqrt(max(speed**2 - float(w @ w) + dw**2, 0.0))
+        va = s_ground * d - w  # through the air
+        heading = float(np.arctan2(va[1], va[0]))
+        vz = float(va[2]) + self.ki_altitude * self.integrals[1]
         climb = float(np.clip(np.arcsin(np.clip(vz / max(speed, 1e-3), -1, 1)),
                               -np.radians(self.max_climb_deg), np.radians(self.max_climb_deg)))
         bank = float(np.clip(bank_for_turn(vd, ad), -np.radians(self.max_bank_deg),
                              np.radians(self.max_bank_deg)))
         turn_rate = GRAVITY * np.tan(bank) / max(speed, 1e-3)
-        S = target_state(self.trim, speed, heading, climb, turn_rate, e0.S, settle_s=0.0)
+        S = target_state(self.trim, speed, heading, climb, turn_rate, e0.S, settle_s=0.0,
+                         wind=None if self.wind is None else w)
         self.desired.append((pd, _attitude_quat(heading, climb + self.trim.aoa, bank)))
         return S
 
@@ -275,14 +289,24 @@ def path_metrics(path: FlightPath, positions: np.ndarray, quats: np.ndarray,
     return out
 
 
-def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float) -> None:
+def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float,
+                  wind: np.ndarray | None = None) -> None:
     """The cruise start moved to the path's first point, heading along its first tangent
-    (level trunk, velocity along the tangent at ``speed``)."""
+    (level trunk, velocity along the tangent at ``speed``). In a ``wind`` (world, m/s) the
+    bird starts as it would be flying there: ``speed`` through the air, crabbed so that its
+    ground track is the tangent."""
     from flapsim.bird.controller import start_cruise
     from flapsim.bird.flight import FlightConfig
 
     t = path.tangent(0.0)
     heading = float(np.arctan2(t[1], t[0]))
+    ground = speed * t
+    if wind is not None and np.any(wind):
+        w = np.asarray(wind, float)
+        tw = float(t @ w)
+        ground = (tw + np.sqrt(max(speed**2 - float(w @ w) + tw**2, 0.0))) * t
+        va = ground - w
+        heading = float(np.arctan2(va[1], va[0]))
     start_cruise(fl, P0, FlightConfig(speed=speed))
     d = fl.data
     qz = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
@@ -290,5 +314,5 @@ def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float) -> None:
     mujoco.mju_mulQuat(q, qz, d.qpos[3:7].copy())
     d.qpos[0:3] = path.point(0.0)
     d.qpos[3:7] = q
-    d.qvel[0:3] = speed * t
+    d.qvel[0:3] = ground
     mujoco.mj_forward(fl.model, d)

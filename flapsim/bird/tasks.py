@@ -184,8 +184,12 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
     try:
         cfg = FlightConfig(speed=task.speed)
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
-        start_on_path(fl, ctl.P0, task.path, task.speed)
         target = PathTarget(trim, task.path, speed=task.speed)
+        if any(task.wind) or task.flow:
+            # the bird feels the air it flies through (and flies its path relative to it)
+            target.wind = lambda p, t: fl.flow.velocity(np.asarray(p, float)[None], t)[0]
+        start_on_path(fl, ctl.P0, task.path, task.speed,
+                      wind=None if target.wind is None else target.wind(task.path.point(0.0), 0.0))
         r = _fly(fl, ctl, target, task, record, progress)
         r.model_hash, r.k, r.database_samples = fl.dove.hash(), ctl.regressor.k, ctl.regressor.n
         return r

@@ -278,7 +278,11 @@ def _register() -> None:
                          "quick_args": {"lobe_m": 25.0},
                          "plucked": [primary_name("l", i) for i in plucked]}))
     entries += [
-        ("wind-steady", "40 m straight with a steady 2 m/s crosswind from the right", P,
+        ("wind-steady", "40 m straight with a steady 1 m/s crosswind from the right", P,
+         {"shape": "straight", "args": {"length_m": 40.0}, "quick_args": {"length_m": 20.0},
+          "wind": (0.0, 1.0, 0.0)}),
+        ("wind-steady-2", "40 m straight with a steady 2 m/s crosswind from the right (16 deg "
+         "of crab at 7 m/s)", P,
          {"shape": "straight", "args": {"length_m": 40.0}, "quick_args": {"length_m": 20.0},
           "wind": (0.0, 2.0, 0.0)}),
         ("wind-breeze", "40 m straight in a breeze swinging 1.5 m/s side to side at 0.3 Hz", P,
