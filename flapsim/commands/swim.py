@@ -85,8 +85,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_target_arguments(p)
     p.add_argument("--viewer", action="store_true",
                    help="watch and steer in the MuJoCo viewer, in real time: arrow keys move the "
-                        "target (default 10 m ahead), PgUp/PgDn change the stroke rate; needs a "
-                        "display")
+                        "target (default 10 m ahead), PgUp/PgDn change the stroke rate, End "
+                        "switches the layers; needs a display")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default=None,
                    help="control layers (the paper's Fig. 2): basic = the stroke alone; cycle = "
                         "+ the per-cycle layer (steering); all = + the continuous layer (palm "
@@ -254,7 +254,8 @@ def run(args: argparse.Namespace) -> dict:
         rates = [e["rate_hz"] for e in viewer.events if "rate_hz" in e]
         s["viewer"] = {"events": viewer.events,
                        "final_target": [viewer.target.x, viewer.target.y],
-                       "final_rate_hz": rates[-1] if rates else s["stroke_rate_hz"]}
+                       "final_rate_hz": rates[-1] if rates else s["stroke_rate_hz"],
+                       "final_layers": s["layers_mode"]}
     if args.out:
         from flapsim.io import save_npz
         from flapsim.swim.targets import Path

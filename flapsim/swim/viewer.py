@@ -7,6 +7,8 @@ breaststroke; treading water stays in place). Keys:
 * arrow keys: move the target 1 m (up/down: +x/-x, the start heading; left/right:
   +y/-y);
 * Page Up / Page Down: stroke rate x1.05 / /1.05;
+* End: switch the control layers, basic -> basic + per-cycle -> all -> basic (the
+  paper's Fig. 15 comparison, live; ``--layers`` sets the first);
 * closing the window (or ``--seconds``) ends the swim; the usual results follow.
 
 The window, camera (tracking the thorax; ``Home``: free camera), key queue, overlay and
@@ -26,6 +28,7 @@ from flapsim.swim.targets import Point
 from flapsim.viewer import (
     FRAME_S,
     KEY_DOWN,
+    KEY_END,
     KEY_LEFT,
     KEY_PAGE_DOWN,
     KEY_PAGE_UP,
@@ -39,6 +42,9 @@ from flapsim.viewer import (
 __all__ = ["SwimViewer", "check_display", "MOVES"]
 
 MOVES = {KEY_UP: (1.0, 0.0), KEY_DOWN: (-1.0, 0.0), KEY_LEFT: (0.0, 1.0), KEY_RIGHT: (0.0, -1.0)}
+#: the key that switches the control layers, and their order
+KEY_LAYERS = KEY_END
+LAYER_CYCLE = ("basic", "cycle", "all")
 
 
 class SwimViewer:
@@ -69,14 +75,21 @@ class SwimViewer:
             f = 1.05 if key == KEY_PAGE_UP else 1.0 / 1.05
             layer.rate_hz = float(np.clip(layer.rate_hz * f, 0.05, 5.0))
             self.events.append({"t": t, "key": key, "rate_hz": layer.rate_hz})
+        elif key == KEY_LAYERS and getattr(layer, "stack", None) is not None:
+            stack = layer.stack
+            nxt = LAYER_CYCLE[(LAYER_CYCLE.index(stack.mode) + 1) % len(LAYER_CYCLE)]
+            stack.set_mode(nxt, t)
+            self.events.append({"t": t, "key": key, "layers": nxt})
 
     def _texts(self, swimmer: Swimmer, layer: BasicStrokeLayer) -> tuple[str, str]:
         com = swimmer.com()
         dist = float(np.hypot(self.target.x - com[0], self.target.y - com[1]))
-        return ("stroke\nrate\ntarget\ndistance\nkeys",
-                f"{layer.stroke.name}\n{layer.rate_hz:.2f} cycles/s\n"
+        stack = getattr(layer, "stack", None)
+        mode = stack.mode if stack is not None else "basic"
+        return ("stroke\nrate\nlayers\ntarget\ndistance\nkeys",
+                f"{layer.stroke.name}\n{layer.rate_hz:.2f} cycles/s\n{mode}\n"
                 f"({self.target.x:g}, {self.target.y:g}) m\n{dist:.1f} m\n"
-                "arrows: move target, PgUp/PgDn: rate, Home: camera")
+                "arrows: move target, PgUp/PgDn: rate, End: layers, Home: camera")
 
     def close(self) -> None:
         """Close the window and wait until the viewer's thread is done."""

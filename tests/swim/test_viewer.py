@@ -1,4 +1,5 @@
-"""The swimmer in MuJoCo's viewer under Xvfb: keys move the target and change the rate."""
+"""The swimmer in MuJoCo's viewer under Xvfb: keys move the target, change the rate and
+switch the control layers."""
 
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
     out = tmp_path / "v.json"
     app = xvfb_display.spawn(
         [sys.executable, "-m", "flapsim.cli", "swim", "--viewer", "--stroke", "crawl",
-         "--seconds", "8", "--json", str(out)], env)
+         "--seconds", "8", "--layers", "basic", "--json", str(out)], env)
     windows: list[str] = []
     deadline = time.monotonic() + 40
     while not windows and time.monotonic() < deadline and app.poll() is None:
@@ -40,8 +41,8 @@ def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
         time.sleep(0.2)
     assert windows, app.communicate(timeout=30)[0].decode()[-2000:]
     time.sleep(1.0)  # let the first frames draw, so the key callback is live
-    subprocess.run(["xdotool", "key", "--window", windows[0], "Up", "Up", "Left", "Page_Up"],
-                   env=env, check=True, timeout=10)
+    subprocess.run(["xdotool", "key", "--window", windows[0], "Up", "Up", "Left", "Page_Up",
+                    "End", "End"], env=env, check=True, timeout=10)
     log = app.communicate(timeout=90)[0].decode()
     assert app.returncode == 0, log[-2000:]  # also: no crash while closing the window
     s = json.loads(out.read_text())
@@ -49,5 +50,10 @@ def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
     assert s["viewer"]["final_target"] == [12.0, 1.0], s["viewer"]
     assert s["viewer"]["final_rate_hz"] == pytest.approx(0.8 * 1.05)
     assert s["target"]["x_m"] == 12.0 and s["target"]["y_m"] == 1.0
+    # End twice: basic -> basic + per-cycle -> all layers, in that order
+    assert [e["layers"] for e in s["viewer"]["events"] if "layers" in e] == ["cycle", "all"]
+    assert s["viewer"]["final_layers"] == "all" and s["layers_mode"] == "all"
+    assert s["layers"] == ["basic stroke", "per-cycle", "continuous"]
+    assert s["cycle_weights"] is not None  # the per-cycle layer ran after the switch
     # paced to real time: 8 simulated seconds took at least ~8 wall seconds
     assert s["seconds"] == pytest.approx(8.0, abs=0.05) and s["wall_s"] > 7.0
