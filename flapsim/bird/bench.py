@@ -25,9 +25,8 @@ from flapsim.bird.flight import FlightConfig, fly
 from flapsim.bird.model import Dove
 
 
-def run(args: argparse.Namespace) -> dict:
-    seconds = args.seconds or 2.0
-    dove = Dove.load()
+def _measure(dove: Dove, seconds: float) -> dict:
+    """Rollout, Python-loop and bare-step timings of one dove model (see the module doc)."""
     dt = float(dove.model.opt.timestep)
     fly(dove, 1)  # warm-up: numba kernels and the callback compile once
     t0 = time.perf_counter()
@@ -49,8 +48,24 @@ def run(args: argparse.Namespace) -> dict:
     wall = time.perf_counter() - t0
     res["bare"] = {"simulated_s": nstep * dt, "wall_s": wall,
                    "real_time_factor": nstep * dt / wall, "us_per_step": 1e6 * wall / nstep}
+    return res
+
+
+def run(args: argparse.Namespace) -> dict:
+    """``--feathers rigid`` (default) or ``modal``: modal is measured together with
+    rigid in the same run, for the cost ratio."""
+    seconds = args.seconds or 2.0
+    feathers = getattr(args, "feathers", None) or "rigid"
+    kinds = ("rigid",) if feathers == "rigid" else ("rigid", "modal")
+    doves = {k: Dove.load(feathers=k) for k in kinds}
+    dove = doves[kinds[-1]]
+    dt = float(dove.model.opt.timestep)
+    per = {k: _measure(doves[k], seconds) for k in kinds}
+    res = per[kinds[-1]]
+    m = dove.model
     out = {
         "target": "dove",
+        "feathers": kinds[-1],
         "timestep": dt,
         "polygons": int(len(dove.feather_triangles()[0])),
         "nv": int(m.nv),
@@ -60,12 +75,22 @@ def run(args: argparse.Namespace) -> dict:
         "machine": platform.processor() or platform.machine(),
         "paper_real_time_factor": [0.3, 0.5],
     }
-    print(f"dove base controller at {1 / dt:.0f} Hz, {out['polygons']} feather polygons, nv {m.nv}")
-    for name in ("rollout", "python_loop", "bare"):
-        r = res[name]
-        print(f"  {name:12s} {r['real_time_factor']:6.1f}x real time ({r['us_per_step']:.1f} us/step)")
-    print(f"  flight step costs {out['cost_over_bare_step']:.2f}x a bare mj_step (paper: 0.3-0.5x "
-          "real time)")
+    if "modal" in per:
+        r, mo = per["rigid"], per["modal"]
+        out["rigid_measurements"] = r
+        out["modal_cost_over_rigid"] = mo["rollout"]["us_per_step"] / r["rollout"]["us_per_step"]
+        out["modal_bare_over_rigid_bare"] = mo["bare"]["us_per_step"] / r["bare"]["us_per_step"]
+    for k in kinds:
+        r = per[k]
+        print(f"dove base controller, {k} feathers, at {1 / dt:.0f} Hz, nv {doves[k].model.nv}")
+        for name in ("rollout", "python_loop", "bare"):
+            print(f"  {name:12s} {r[name]['real_time_factor']:6.1f}x real time "
+                  f"({r[name]['us_per_step']:.1f} us/step)")
+        print(f"  flight step costs {r['rollout']['us_per_step'] / r['bare']['us_per_step']:.2f}x "
+              "a bare mj_step (paper: 0.3-0.5x real time)")
+    if "modal" in per:
+        print(f"modal feathers cost {out['modal_cost_over_rigid']:.2f}x rigid per flight step "
+              f"(bare step {out['modal_bare_over_rigid_bare']:.2f}x)")
     return out
 
 

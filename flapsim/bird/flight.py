@@ -152,15 +152,28 @@ class DoveFlight:
         m = self.dove.model
         self.model = m
         self.data = mujoco.MjData(m)
-        feathers = feather_polygons(self.dove)
-        if self.plucked:
-            feathers = _without(feathers, self.plucked)
-        self.polygons = PolygonSet.concat([feathers, body_polygons(self.dove)])
         self.flow = FlowField([Uniform(self.wind), *self.flow])
+        self.modal = None
+        """The modal feathers' provider (:class:`~flapsim.bird.modal_feathers.ModalFeathers`)
+        of a modal dove (``Dove.load(feathers="modal")``); None for rigid feathers."""
+        if self.dove.modal is None:
+            feathers = feather_polygons(self.dove)
+            if self.plucked:
+                feathers = _without(feathers, self.plucked)
+            self.polygons = PolygonSet.concat([feathers, body_polygons(self.dove)])
+        else:
+            from flapsim.bird.modal_feathers import ModalFeathers, dove_feather_modes
+
+            # the deformable feathers are the modal provider's; the trunk stays a polygon set
+            self.polygons = body_polygons(self.dove)
+            self.modal = ModalFeathers(m, dove_feather_modes(self.dove.params, self.dove.modal),
+                                       get_table(self.table), AIR_DENSITY, self.flow,
+                                       plucked=self.plucked)
         self.aero = SurfaceForces(m, self.polygons,
                                   [get_table(self.table), bluff_body(self.dove.params.body_drag_cd)],
                                   FluidParams(AIR_DENSITY), self.flow, name="dove feathers and body")
         self.registration = self.aero.register(self.data)
+        self._modal_registration = self.modal.register(self.data) if self.modal else None
         self.kp, self.kv = affine_gains(m)
         self._free = m.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
         self._tendon = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, "tail_spread")
@@ -182,6 +195,20 @@ class DoveFlight:
 
     def close(self) -> None:
         self.registration.remove()
+        if self._modal_registration is not None:
+            self._modal_registration.remove()
+
+    def aero_forces(self, d: mujoco.MjData | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every aerodynamic polygon's (force (n, 3), world point (n, 3), is-feather (n,)) for
+        the current state: the feathers (deformed, for a modal dove) and the trunk."""
+        d = self.data if d is None else d
+        rep = self.aero.evaluate(d)
+        is_feather = self.polygons.table != BODY_TABLE
+        if self.modal is None:
+            return rep.force, rep.points, is_feather
+        mr = self.modal.evaluate(d)
+        return (np.vstack([mr.force, rep.force]), np.vstack([mr.points, rep.points]),
+                np.concatenate([np.ones(len(mr.force), bool), is_feather]))
 
     # -- state -----------------------------------------------------------------------------
     def set_pose(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -337,13 +364,15 @@ class TunnelResult:
 
 def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: float = 0.0,
                 cycles: int = 3, table: str = FlightConfig.table,
-                ref: ReferenceWingbeat | None = None) -> TunnelResult:
+                ref: ReferenceWingbeat | None = None, modal: object | None = None) -> TunnelResult:
     """Weld the trunk, blow ``speed`` m/s from ahead, flap wingbeat ``p`` and average the
-    aerodynamic force over the last cycle (the first ones settle the feathers)."""
+    aerodynamic force over the last cycle (the first ones settle the feathers). ``modal``:
+    a :class:`~flapsim.bird.feather_modes.ModalParams` for modal (deformable) feathers."""
     if cycles < 2:
         raise InputError("wind_tunnel needs >= 2 cycles (the first settles the transients)")
-    model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg), is_xml=True)
-    dove = Dove.from_model(model, params)
+    model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg, modal=modal),
+                       is_xml=True)
+    dove = Dove.from_model(model, params, modal)
     fl = DoveFlight(dove, ref or reference_wingbeat(), table, (-speed, 0.0, 0.0),
                     use_rollout=False)
     try:
@@ -366,13 +395,16 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
         for k in range(len(ctrl)):
             d.ctrl[:] = ctrl[k]
             mujoco.mj_step(m, d)
-            rep = fl.aero.evaluate(d)
-            f = rep.force
+            f, points, _ = fl.aero_forces(d)
             F += f.sum(axis=0)
-            r = rep.points - trunk
+            r = points - trunk
             M += float(np.sum(r[:, 0] * f[:, 2] - r[:, 2] * f[:, 0]))
-            R = d.xmat[fl.polygons.body[feathers]].reshape(-1, 3, 3)
-            proj = float(np.sum(areas * np.abs(np.einsum("nij,nj->ni", R, nz)[:, 2])))
+            if fl.modal is None:
+                R = d.xmat[fl.polygons.body[feathers]].reshape(-1, 3, 3)
+                proj = float(np.sum(areas * np.abs(np.einsum("nij,nj->ni", R, nz)[:, 2])))
+            else:  # the deformed triangles
+                mr = fl.modal.evaluate(d)
+                proj = float(np.sum(mr.area * np.abs(mr.normal[:, 2])))
             (down_area if k * m.opt.timestep < ds else up_area).append(proj)
         DISPATCHER.check(d)
         n = len(ctrl)

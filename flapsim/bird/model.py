@@ -505,11 +505,15 @@ _HEADER = """<mujoco model="dove">
 """
 
 
-def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None) -> str:
+def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
+              modal: object | None = None) -> str:
     """The complete dove MJCF as a string (meshes inline).
 
     ``fixed_trunk_pitch_deg``: weld the trunk to the world (no free joint) at this nose-up
-    pitch, for "wind tunnel" measurements.
+    pitch, for "wind tunnel" measurements. ``modal``: a
+    :class:`~flapsim.bird.feather_modes.ModalParams` adds each feather's modes as point-mass
+    bodies on slide joints (:func:`flapsim.bird.modal_feathers.modal_xml`); ``None``
+    (default) is the rigid-feather model, unchanged.
     """
     feathers = all_feathers(p)
     by_body: dict[str, list[fz.Feather]] = {}
@@ -542,6 +546,10 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None) -> str:
     out.append(_actuators_xml(p))
     out.append(_sensors_xml())
     out.append("</mujoco>\n")
+    if modal is not None:
+        from flapsim.bird.modal_feathers import modal_xml
+
+        return modal_xml("".join(out), p, modal)
     return "".join(out)
 
 
@@ -776,24 +784,45 @@ class Dove:
     """qpos address of each of the 14 DOF (the tail spread: -1, it is a tendon)."""
     dadr: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     """qvel address of each of the 14 DOF (-1 for the tail spread)."""
+    modal: object | None = None
+    """The :class:`~flapsim.bird.feather_modes.ModalParams` of a modal-feather dove, or None
+    (rigid feathers, the default)."""
+
+    @property
+    def feathers(self) -> str:
+        """``rigid`` or ``modal``."""
+        return "rigid" if self.modal is None else "modal"
 
     @classmethod
-    def load(cls, path: str | Path | None = None, params: DoveParams | None = None) -> Dove:
+    def load(cls, path: str | Path | None = None, params: DoveParams | None = None,
+             feathers: str = "rigid", modal: object | None = None) -> Dove:
+        """The bundled dove (``feathers="rigid"``, from ``bird_mjcf/dove.xml``), or the same
+        bird with modal feathers (``feathers="modal"``: generated from the parameters with
+        ``modal`` or the default :class:`~flapsim.bird.feather_modes.ModalParams`)."""
         from flapsim.sim.loading import load_model
 
         params = params or DoveParams.load()
+        if feathers == "modal":
+            from flapsim.bird.feather_modes import ModalParams
+
+            if path is not None:
+                raise ModelError("modal feathers are generated from the parameters, not a file")
+            return cls.from_params(params, modal or ModalParams())
+        if feathers != "rigid":
+            raise ModelError(f"feathers must be 'rigid' or 'modal', got {feathers!r}")
         model = load_model(path or model_path())
         return cls.from_model(model, params)
 
     @classmethod
-    def from_params(cls, params: DoveParams) -> Dove:
+    def from_params(cls, params: DoveParams, modal: object | None = None) -> Dove:
         """Compile straight from parameters (no file): for studies that vary the model."""
         from flapsim.sim.loading import load_model
 
-        return cls.from_model(load_model(build_xml(params), is_xml=True), params)
+        return cls.from_model(load_model(build_xml(params, modal=modal), is_xml=True), params, modal)
 
     @classmethod
-    def from_model(cls, model: mujoco.MjModel, params: DoveParams) -> Dove:
+    def from_model(cls, model: mujoco.MjModel, params: DoveParams,
+                   modal: object | None = None) -> Dove:
         if model.nu != N_DOF:
             raise ModelError(f"dove model has {model.nu} actuators, expected {N_DOF} ({DOF_NAMES})")
         names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(model.nu)]
@@ -805,7 +834,7 @@ class Dove:
             qadr.append(model.jnt_qposadr[j] if j >= 0 else -1)
             dadr.append(model.jnt_dofadr[j] if j >= 0 else -1)
         trunk = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "trunk")
-        return cls(model, params, trunk, np.array(qadr), np.array(dadr))
+        return cls(model, params, trunk, np.array(qadr), np.array(dadr), modal)
 
     @property
     def mass(self) -> float:

@@ -41,6 +41,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="samples for 'train' (default 48 per worker)")
     p.add_argument("--wingbeats", type=integer(1, 100000), default=None,
                    help="wingbeats for 'controller' (default 20)")
+    p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
+                   help="'dove': rigid feathers (default) or modal ones (measured with rigid in "
+                        "the same run, for the cost ratio)")
     add_input_arg(p, "--db", default=None, help="database for 'controller' (default: the bundled one)")
 
 

@@ -45,6 +45,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="feather coefficient table (default dickinson1999_lowdrag)")
     p.add_argument("--python-loop", action="store_true",
                    help="step in a Python loop instead of mujoco.rollout (same result)")
+    p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
+                   help="rigid feather plates (default) or modal feathers that bend and twist "
+                        "(4 modes each, the paper's sec. 6: slower)")
     p.add_argument("--fps", type=quantity("fps"), default=30.0, help="video frames per second")
     p.add_argument("--size", default="640x480", help="video size WxH (default 640x480)")
 
@@ -81,14 +84,18 @@ def run(args: argparse.Namespace) -> dict:
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")
+        if args.feathers != "rigid":
+            raise InputError("--path flies the rigid-feather dove (the bundled database's model); "
+                             "drop --feathers modal")
         return _run_path(args, cfg, width, height)
     if args.controller == "learned" or args.db or args.roll_deg:
         return _run_controlled(args, cfg, width, height)
-    dove = Dove.load()
+    dove = Dove.load(feathers=args.feathers)
     flight = fly(dove, args.wingbeats, cfg, use_rollout=not args.python_loop, progress=True)
     metrics = flight_metrics(flight)
     result = {
         "wingbeats": args.wingbeats,
+        "feathers": args.feathers,
         "model_hash": dove.hash(),
         "mass": dove.mass,
         "config": {"speed": cfg.speed, "pitch_deg": cfg.pitch_deg,
@@ -96,7 +103,8 @@ def run(args: argparse.Namespace) -> dict:
                    "timestep": float(dove.model.opt.timestep)},
         **metrics,
     }
-    print(f"dove base controller, {args.wingbeats} wingbeats ({metrics['simulated_s']:.2f} s "
+    print(f"dove base controller, {args.feathers} feathers, {args.wingbeats} wingbeats "
+          f"({metrics['simulated_s']:.2f} s "
           f"simulated, {metrics['real_time_factor']:.1f}x real time)")
     print(f"  mean speed {metrics['mean_speed']:.2f} m/s, wingbeat {metrics['wingbeat_hz']:.2f} Hz, "
           f"mean lift/weight {metrics['mean_lift_per_weight']:.3f}")
@@ -137,7 +145,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     from flapsim.bird.model import Dove
     from flapsim.bird.wingbeat import p0, with_tail_bias
 
-    dove = Dove.load()
+    dove = Dove.load(feathers=args.feathers)
     fl = DoveFlight(dove, table=cfg.table)
     try:
         if args.controller == "learned":

@@ -277,6 +277,56 @@ def pseudo_angle_tables(table: CoefficientTable) -> tuple[np.ndarray, np.ndarray
     return cl, cd
 
 
+@njit(cache=True, inline="always", fastmath={"contract", "arcp", "afn", "nsz"})
+def plate_force(rho, eta, area, nx, ny, nz, vx, vy, vz, vn, tx, ty, tz, x, has_f, tab_index,
+                cl_tab, cd_tab):
+    """Drag, lift and friction (9 numbers, world frame) on one polygon of ``area`` and unit
+    normal ``n`` in the relative flow ``v``, with ``vn = v.N``, ``t`` the friction (or
+    tangential) part and ``x`` the signed in-plane flow (see :func:`surface_kernel`)."""
+    dvx = vx - tx if has_f else vx
+    dvy = vy - ty if has_f else vy
+    dvz = vz - tz if has_f else vz
+    frx = eta * area * tx
+    fry = eta * area * ty
+    frz = eta * area * tz
+    y = abs(vn)
+    ax = abs(x)
+    sp2 = vn * vn + x * x
+    drx = 0.0
+    dry = 0.0
+    drz = 0.0
+    lfx = 0.0
+    lfy = 0.0
+    lfz = 0.0
+    if sp2 > 1e-24:
+        s = y / (ax + y)
+        dd = s if x >= 0.0 else 2.0 - s
+        nsamp = 721  # KERNEL_SAMPLES
+        tab = tab_index * nsamp
+        u = dd * (0.5 * (nsamp - 1))
+        k0 = min(int(u), nsamp - 2)
+        fr = u - k0
+        cl = cl_tab[tab + k0] * (1.0 - fr) + cl_tab[tab + k0 + 1] * fr
+        cd = cd_tab[tab + k0] * (1.0 - fr) + cd_tab[tab + k0 + 1] * fr
+        if x < 0.0:
+            cl = -cl  # past 90 deg a symmetric table's lift axis has turned over
+        sp = np.sqrt(sp2)
+        q = 0.5 * rho * sp2 * area
+        g = q * cd / sp
+        drx = g * dvx
+        dry = g * dvy
+        drz = g * dvz
+        # unit lift: (sg N - (y/sp) e) / (|x|/sp), with e = V_d/sp and sg = sign(V_d.N)
+        if ax > 1e-12 * sp:
+            h = q * cl / ax
+            sg = sp if vn >= 0.0 else -sp
+            k = y / sp
+            lfx = h * (sg * nx - k * dvx)
+            lfy = h * (sg * ny - k * dvy)
+            lfz = h * (sg * nz - k * dvz)
+    return drx, dry, drz, lfx, lfy, lfz, frx, fry, frz
+
+
 @njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
 def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, pext, ptab,
                    cl_tab, cd_tab, flow, params, tnow, ext_flow, rec):
@@ -293,8 +343,6 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
     use_ext = params[4] > 0.5
     record = rec.size >= 16 * pbody.size
     t = tnow[0]
-    nsamp = 721  # KERNEL_SAMPLES
-    half_seg = 0.5 * (nsamp - 1)
     for i in range(pbody.size):
         b = pbody[i]
         px, py, pz = body_point(xpos, xmat, b, pc[3 * i], pc[3 * i + 1], pc[3 * i + 2])
@@ -358,46 +406,10 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             ty = vy - vn * ny
             tz = vz - vn * nz
             x = np.sqrt(tx * tx + ty * ty + tz * tz)
-        dvx = vx - tx if has_f else vx
-        dvy = vy - ty if has_f else vy
-        dvz = vz - tz if has_f else vz
-        frx = eta * area * tx
-        fry = eta * area * ty
-        frz = eta * area * tz
+        (drx, dry, drz, lfx, lfy, lfz, frx, fry, frz) = plate_force(
+            rho, eta, area, nx, ny, nz, vx, vy, vz, vn, tx, ty, tz, x, has_f, ptab[i], cl_tab,
+            cd_tab)
         y = abs(vn)
-        ax = abs(x)
-        sp2 = vn * vn + x * x
-        drx = 0.0
-        dry = 0.0
-        drz = 0.0
-        lfx = 0.0
-        lfy = 0.0
-        lfz = 0.0
-        if sp2 > 1e-24:
-            s = y / (ax + y)
-            dd = s if x >= 0.0 else 2.0 - s
-            tab = ptab[i] * nsamp
-            u = dd * half_seg
-            k0 = min(int(u), nsamp - 2)
-            fr = u - k0
-            cl = cl_tab[tab + k0] * (1.0 - fr) + cl_tab[tab + k0 + 1] * fr
-            cd = cd_tab[tab + k0] * (1.0 - fr) + cd_tab[tab + k0 + 1] * fr
-            if x < 0.0:
-                cl = -cl  # past 90 deg a symmetric table's lift axis has turned over
-            sp = np.sqrt(sp2)
-            q = 0.5 * rho * sp2 * area
-            g = q * cd / sp
-            drx = g * dvx
-            dry = g * dvy
-            drz = g * dvz
-            # unit lift: (sg N - (y/sp) e) / (|x|/sp), with e = V_d/sp and sg = sign(V_d.N)
-            if ax > 1e-12 * sp:
-                h = q * cl / ax
-                sg = sp if vn >= 0.0 else -sp
-                k = y / sp
-                lfx = h * (sg * nx - k * dvx)
-                lfy = h * (sg * ny - k * dvy)
-                lfz = h * (sg * nz - k * dvz)
         Fx = drx + lfx + frx
         Fy = dry + lfy + fry
         Fz = drz + lfz + frz

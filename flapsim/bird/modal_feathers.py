@@ -1,0 +1,649 @@
+"""Modal feathers in the simulation: extra MuJoCo DOF per mode, forces from a compiled kernel.
+
+Mechanism (measured against the alternatives: see the README, "Modal feathers"). Each mode
+of each feather (:mod:`flapsim.bird.feather_modes`) is one slide joint of an otherwise
+weightless body hung from the world: its ``qpos``/``qvel`` are the modal coordinate and
+rate, so snapshots (``mjSTATE_FULLPHYSICS``), ``mujoco.rollout`` and repeated
+``mj_forward`` calls all carry or leave them exactly like any joint. The joint's
+``armature`` is the mode's generalized mass, its ``stiffness`` the modal stiffness and its
+``damping`` the structural damping (implicit in ``implicitfast``). Modes the timestep cannot
+resolve (``omega dt > ModalParams.implicit_above``) also get ``k dt`` of damping: with the
+explicit spring that is exactly backward Euler for them (stable at any frequency; numerically
+damped). Resolved modes are stepped semi-implicitly (symplectic: energy does not drift).
+
+Every step the compiled kernel :func:`modal_kernel`, one more provider on the passive
+dispatcher, for every feather:
+
+1. builds the deformed feather by modal warping (each shaft section rotated by the modes'
+   slope and twist, the centreline integrated: a bent feather keeps its length), and the
+   Jacobian of each vertex with respect to each modal coordinate;
+2. computes drag and lift on every *deformed* triangle with the shared surface-force
+   formula (:func:`flapsim.fluid.surfaces.plate_force`), with the point velocity of the bone
+   plus the deformation rate, and applies it to the bone at the deformed centroid (the paper's
+   eq. 9) and, spread equally to the triangle's three vertices, to the modes (virtual work);
+3. adds the D'Alembert load of the bone's acceleration (and gravity) on the modes; the
+   bone's acceleration is the previous step's (``qacc_warmstart``, which MuJoCo keeps and
+   the snapshots carry): a one-step lag;
+4. applies the deforming feather's inertial reaction back onto its bone: the modes'
+   relative acceleration ``(Q - k q - c qdot) / (mu + c dt)`` (MuJoCo's own implicit
+   update) times their ``Gamma``/``S`` (the feather's rigid inertia is already in the bone).
+
+Twist of the primaries stays on their MuJoCo hinges (spring, damper, one-sided range), as in
+the rigid model; the modes hang on the twisted feather.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numba import njit
+
+from flapsim.bird.feather_modes import FeatherModes, ModalParams, feather_modes
+from flapsim.errors import InputError, ModelError
+from flapsim.fluid.coefficients import CoefficientTable
+from flapsim.fluid.flow import FlowField, flow_at
+from flapsim.fluid.surfaces import plate_force, pseudo_angle_tables
+from flapsim.sim.callbacks import CompiledProvider, Registration, register, register_kernel, time_view
+from flapsim.sim.wrench import add_force
+
+FI = 10  # ints per feather
+REC = 16  # floats recorded per triangle (force 3, point 3, normal 3, area 1, spare)
+
+
+def _lead_fraction(p, kind: str) -> float:
+    return p.primary_lead_fraction if kind == "primary" else 0.5
+
+
+def _segments(p, kind: str) -> int:
+    return {"primary": p.primary_segments, "secondary": p.secondary_segments,
+            "tertial": p.tertial_segments, "rectrix": p.rectrix_segments}[kind]
+
+
+def mass_scaled(fm: FeatherModes) -> FeatherModes:
+    """The same modes with each coordinate scaled so that its generalized mass equals its
+    ``Gamma`` (``s = Gamma / mu``, sign making ``Gamma > 0``): then one point mass
+    ``m = Gamma`` at ``c = S / Gamma`` on a slide joint along the normal carries the mode's
+    whole inertial coupling with its bone (see :func:`modal_xml`)."""
+    s = fm.gamma / fm.mu
+    s = np.where(np.abs(s) < 1e-9, 1e-9, s)
+    return dataclasses.replace(
+        fm, slope=fm.slope * s, twist=fm.twist * s, shape=fm.shape * s, mu=fm.mu * s**2,
+        gamma=fm.gamma * s, first_moment=fm.first_moment * s[:, None], unit=fm.unit * s)
+
+
+@functools.lru_cache(maxsize=8)
+def dove_feather_modes(p, mp: ModalParams) -> tuple[FeatherModes, ...]:
+    """Mass-scaled modes (:func:`mass_scaled`) of every dove feather (left wing, left tail
+    half, then the right side)."""
+    from flapsim.bird.model import all_feathers
+
+    return tuple(mass_scaled(feather_modes(fe, _lead_fraction(p, fe.kind), _segments(p, fe.kind),
+                                           mp)) for fe in all_feathers(p))
+
+
+def mode_joint_gains(fm: FeatherModes, mp: ModalParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(stiffness, damping) of each mode's slide joint: ``mu omega^2`` and the structural
+    ``2 zeta omega mu``, plus ``k dt`` for modes the step cannot resolve (backward Euler)."""
+    k = fm.stiffness
+    c = 2 * mp.damping_ratio * fm.omega * fm.mu
+    return k, c + np.where(fm.omega * dt > mp.implicit_above, k * dt, 0.0)
+
+
+def _point_inertia(m: float) -> float:
+    """Rotational inertia of a mode's point mass: MuJoCo needs one; it is negligible (the
+    bone loses it too)."""
+    return 1e-14
+
+
+def modal_xml(xml: str, p, mp: ModalParams) -> str:
+    """Add the modes to the rigid dove's MJCF: per feather and mode a child body of the
+    feather's bone holding a point mass ``Gamma`` at ``S / Gamma`` on a slide joint along the
+    feather's normal (stiffness and damping from :func:`mode_joint_gains`); the bone's own
+    inertial loses the same point masses, so the undeformed bird's mass distribution is
+    unchanged. For a flat feather whose modes deflect it out of its plane, this reproduces
+    MuJoCo-exactly every inertial term linear in the modes: the D'Alembert load of the bone's
+    linear and angular acceleration, centrifugal load, gravity, and the reaction of the
+    feather's deformation back onto the bone."""
+    from flapsim.bird.model import _Inertia
+
+    root = ET.fromstring(xml)
+    bodies = {b.get("name"): b for b in root.iter("body")}
+    by_bone: dict[str, list[FeatherModes]] = {}
+    for fm in dove_feather_modes(p, mp):
+        by_bone.setdefault(fm.body, []).append(fm)
+    for bone, fms in by_bone.items():
+        el = bodies[bone]
+        inert = el.find("inertial")
+        mass = float(inert.get("mass"))
+        com = np.array(inert.get("pos").split(), float)
+        fi = np.array(inert.get("fullinertia").split(), float)
+        I = np.array([[fi[0], fi[3], fi[4]], [fi[3], fi[1], fi[5]], [fi[4], fi[5], fi[2]]])
+        total = _Inertia()
+        total.add(mass, com, I)
+        for fm in fms:
+            for m, pos, i0 in _add_mode_bodies(el, fm, mp, p.timestep):
+                total.add(-m, pos, -i0 * np.eye(3))
+            twist = el.find(f"joint[@name='{fm.name}_twist']")
+            if twist is not None:
+                twist.set("armature", f"{twist_armature(fm, np.array(twist.get('axis').split(), float)):.9g}")
+        m, com, I = total.total()
+        ev = np.linalg.eigvalsh(I)
+        if m <= 0 or ev.min() <= 0 or 2 * ev.max() > ev.sum() * (1 + 1e-9):
+            raise ModelError(f"body {bone}: the feather modes' point masses leave no physical "
+                             f"inertia (mass {m:.3g}, principal moments {ev})")
+        inert.set("mass", f"{m:.12g}")
+        inert.set("pos", _v(com))
+        inert.set("fullinertia", " ".join(f"{x:.12g}" for x in
+                                          (I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2])))
+    return ET.tostring(root, encoding="unicode")
+
+
+def twist_armature(fm: FeatherModes, axis: np.ndarray) -> float:
+    """The primary's inertia about its twist hinge that the free modes take off the hinge:
+    ``sum_k (a . (S_k x n))^2 / m_k`` (the hinge at the body origin, ``a`` its axis).
+
+    With the modes free, the hinge alone moves only the root: its effective inertia falls to
+    a few per cent of the feather's. MuJoCo's soft joint limit is as hard as the inertia it
+    sees, so the one-sided twist stop would yield ~15 deg when the vanes snap shut. This
+    armature gives the stop the rigid feather's inertia back (a numerical device, no mass: it
+    slows only the hinge's fast transients; the twist's overdamped relaxation time c/k does
+    not depend on it, :func:`tests.bird.test_modal_feathers`)."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    lever = np.cross(fm.first_moment, fm.normal) @ a
+    return float(np.sum(lever**2 / fm.gamma))
+
+
+def clamped_feather_xml(fm: FeatherModes, mp: ModalParams, timestep: float,
+                        gravity: bool = False) -> str:
+    """One feather clamped at its root to a fixed bone (named after ``fm.body``), its modes
+    as in the dove (:func:`modal_xml`): the unit model of the tests and the calibration."""
+    xml = (f'<mujoco><option timestep="{timestep:.10g}" integrator="implicitfast" '
+           f'gravity="0 0 {-9.81 if gravity else 0.0}"/>'
+           f'<worldbody><body name="{fm.body}" pos="0 0 1">'
+           '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>')
+    root = ET.fromstring(xml)
+    _add_mode_bodies(root.find("worldbody/body"), fm, mp, timestep)
+    return ET.tostring(root, encoding="unicode")
+
+
+def _add_mode_bodies(bone: ET.Element, fm: FeatherModes, mp: ModalParams, timestep: float
+                     ) -> list[tuple[float, np.ndarray, float]]:
+    """Append one point-mass body per mode of ``fm`` to ``bone``; returns (mass, position,
+    rotational inertia) of each, for the bone to give up."""
+    k, c = mode_joint_gains(fm, mp, timestep)
+    out = []
+    for j in range(len(k)):
+        m = float(fm.gamma[j])
+        pos = fm.first_moment[j] / m
+        i0 = _point_inertia(m)
+        b = ET.SubElement(bone, "body", name=f"{fm.name}_mode{j + 1}", pos=_v(pos))
+        ET.SubElement(b, "inertial", pos="0 0 0", mass=f"{m:.12g}",
+                      diaginertia=f"{i0:.6g} {i0:.6g} {i0:.6g}")
+        ET.SubElement(b, "joint", name=f"{fm.name}_mode{j + 1}", type="slide", axis=_v(fm.normal),
+                      stiffness=f"{k[j]:.12g}", damping=f"{c[j]:.12g}", armature="0")
+        out.append((m, pos, i0))
+    return out
+
+
+def _v(a) -> str:
+    return " ".join(f"{x:.12g}" for x in np.asarray(a, float).ravel())
+
+
+@njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
+def warp(K, ff, fo, grid, go, nst, sub, q, vst, vx, voff, nv, out, wo):
+    """Modal warping of one feather: body-frame vertex positions and their Jacobians.
+
+    ``out[(v) * 3 * (1 + K) + 3 * j + c]``: j = 0 the position, j = 1 + k the derivative by
+    mode k; ``out[wo:wo + 3 (1 + K)]`` is work space. ``ff[fo:]`` holds root, shaft, chord,
+    normal, length. ``q`` (K,) coordinates.
+    """
+    sx, sy, sz = ff[fo + 3], ff[fo + 4], ff[fo + 5]
+    cx, cy, cz = ff[fo + 6], ff[fo + 7], ff[fo + 8]
+    nx, ny, nz = ff[fo + 9], ff[fo + 10], ff[fo + 11]
+    L = ff[fo + 12]
+    ng = (nst - 1) * sub + 1
+    h = L / (ng - 1)
+    stride = 3 * (1 + K)
+    # centreline C and its derivatives D_k, marched along the grid (trapezoid)
+    C = out[wo:wo + 3]
+    D = out[wo + 3:wo + 3 + 3 * K].reshape((K, 3))
+    for k in range(3 * (1 + K)):
+        out[wo + k] = 0.0
+    cbp = 1.0
+    sbp = 0.0
+    for g in range(ng):
+        beta = 0.0
+        tau = 0.0
+        for k in range(K):
+            beta += q[k] * grid[go + (g * K + k) * 2]
+            tau += q[k] * grid[go + (g * K + k) * 2 + 1]
+        cb, sb = np.cos(beta), np.sin(beta)
+        if g > 0:
+            C[0] += 0.5 * h * (cbp * sx + sbp * nx + cb * sx + sb * nx)
+            C[1] += 0.5 * h * (cbp * sy + sbp * ny + cb * sy + sb * ny)
+            C[2] += 0.5 * h * (cbp * sz + sbp * nz + cb * sz + sb * nz)
+            for k in range(K):
+                a0 = grid[go + ((g - 1) * K + k) * 2]
+                a1 = grid[go + (g * K + k) * 2]
+                D[k, 0] += 0.5 * h * (a0 * (-sbp * sx + cbp * nx) + a1 * (-sb * sx + cb * nx))
+                D[k, 1] += 0.5 * h * (a0 * (-sbp * sy + cbp * ny) + a1 * (-sb * sy + cb * ny))
+                D[k, 2] += 0.5 * h * (a0 * (-sbp * sz + cbp * nz) + a1 * (-sb * sz + cb * nz))
+        cbp, sbp = cb, sb
+        if g % sub != 0:
+            continue
+        j = g // sub
+        ct, st = np.cos(tau), np.sin(tau)
+        # bent normal n' = -sin(b) s + cos(b) n; twisted chord c' = cos(t) c + sin(t) n'
+        npx, npy, npz = -sb * sx + cb * nx, -sb * sy + cb * ny, -sb * sz + cb * nz
+        chx, chy, chz = ct * cx + st * npx, ct * cy + st * npy, ct * cz + st * npz
+        # d c'/d tau and d c'/d beta
+        dtx, dty, dtz = -st * cx + ct * npx, -st * cy + ct * npy, -st * cz + ct * npz
+        dbx = st * (-cb * sx - sb * nx)
+        dby = st * (-cb * sy - sb * ny)
+        dbz = st * (-cb * sz - sb * nz)
+        for i in range(voff, voff + nv):
+            if vst[i] != j:
+                continue
+            x = vx[i]
+            o = (i - voff) * stride
+            out[o] = ff[fo] + C[0] + x * chx
+            out[o + 1] = ff[fo + 1] + C[1] + x * chy
+            out[o + 2] = ff[fo + 2] + C[2] + x * chz
+            for k in range(K):
+                sl = grid[go + (g * K + k) * 2]
+                tw = grid[go + (g * K + k) * 2 + 1]
+                out[o + 3 + 3 * k] = D[k, 0] + x * (tw * dtx + sl * dbx)
+                out[o + 4 + 3 * k] = D[k, 1] + x * (tw * dty + sl * dby)
+                out[o + 5 + 3 * k] = D[k, 2] + x * (tw * dtz + sl * dbz)
+    return 0
+
+
+@njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
+def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, grid, vst, vx,
+                 tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec):
+    """Aerodynamic (and external) forces on every deformed feather, to its bone and its
+    modes (see the module docstring). ``fluid`` = (density, friction, K)."""
+    rho = fluid[0]
+    eta = fluid[1]
+    K = int(fluid[2])
+    t = tnow[0]
+    nfe = fint.size // FI
+    FF = 13 + 4 * K
+    stride = 3 * (1 + K)
+    record = rec.size >= REC * (tri.size // 3)
+    wo = int(fluid[3])  # work space after the vertex data in scratch
+    Q = scratch[wo + 3 * (1 + K):wo + 3 * (1 + K) + K]
+    qk = scratch[wo + 3 * (1 + K) + K:wo + 3 * (1 + K) + 2 * K]
+    qdk = scratch[wo + 3 * (1 + K) + 2 * K:wo + 3 * (1 + K) + 3 * K]
+    P = scratch[wo + 3 * (1 + K) + 3 * K:wo + 3 * (1 + K) + 3 * K + 9].reshape((3, 3))
+    wv = wo + 3 * (1 + K) + 3 * K + 9  # per-vertex work: world position, velocity, load
+    for f in range(nfe):
+        b = fint[FI * f]
+        qa = fint[FI * f + 1]
+        da = fint[FI * f + 2]
+        nst = fint[FI * f + 3]
+        sub = fint[FI * f + 4]
+        voff = fint[FI * f + 5]
+        nv = fint[FI * f + 6]
+        toff = fint[FI * f + 7]
+        nt = fint[FI * f + 8]
+        go = fint[FI * f + 9]
+        fo = FF * f
+        for k in range(K):
+            qk[k] = qpos[qa + k]
+            qdk[k] = qvel[da + k]
+            Q[k] = 0.0
+        warp(K, ff, fo, grid, go, nst, sub, qk, vst, vx, voff, nv, scratch, wo)
+        m = 9 * b
+        R00, R01, R02 = xmat[m], xmat[m + 1], xmat[m + 2]
+        R10, R11, R12 = xmat[m + 3], xmat[m + 4], xmat[m + 5]
+        R20, R21, R22 = xmat[m + 6], xmat[m + 7], xmat[m + 8]
+        ox, oy, oz = xpos[3 * b], xpos[3 * b + 1], xpos[3 * b + 2]
+        r = rootid[b]
+        c0, c1, c2 = scom[3 * r], scom[3 * r + 1], scom[3 * r + 2]
+        wx, wy, wz = cvel[6 * b], cvel[6 * b + 1], cvel[6 * b + 2]
+        lx, ly, lz = cvel[6 * b + 3], cvel[6 * b + 4], cvel[6 * b + 5]
+        # every vertex once: world position, deformation velocity (body frame), load sum
+        for i in range(nv):
+            o = i * stride
+            bx, by, bz = scratch[o], scratch[o + 1], scratch[o + 2]
+            u0 = 0.0
+            u1 = 0.0
+            u2 = 0.0
+            for k in range(K):
+                u0 += scratch[o + 3 + 3 * k] * qdk[k]
+                u1 += scratch[o + 4 + 3 * k] * qdk[k]
+                u2 += scratch[o + 5 + 3 * k] * qdk[k]
+            o9 = wv + 9 * i
+            scratch[o9] = ox + R00 * bx + R01 * by + R02 * bz
+            scratch[o9 + 1] = oy + R10 * bx + R11 * by + R12 * bz
+            scratch[o9 + 2] = oz + R20 * bx + R21 * by + R22 * bz
+            scratch[o9 + 3] = u0
+            scratch[o9 + 4] = u1
+            scratch[o9 + 5] = u2
+            scratch[o9 + 6] = 0.0
+            scratch[o9 + 7] = 0.0
+            scratch[o9 + 8] = 0.0
+        for it in range(toff, toff + nt):
+            px = 0.0
+            py = 0.0
+            pz = 0.0
+            ub0 = 0.0
+            ub1 = 0.0
+            ub2 = 0.0
+            for a in range(3):
+                o9 = wv + 9 * (tri[3 * it + a] - voff)
+                P[a, 0] = scratch[o9]
+                P[a, 1] = scratch[o9 + 1]
+                P[a, 2] = scratch[o9 + 2]
+                px += scratch[o9] / 3.0
+                py += scratch[o9 + 1] / 3.0
+                pz += scratch[o9 + 2] / 3.0
+                ub0 += scratch[o9 + 3] / 3.0
+                ub1 += scratch[o9 + 4] / 3.0
+                ub2 += scratch[o9 + 5] / 3.0
+            e1x, e1y, e1z = P[1, 0] - P[0, 0], P[1, 1] - P[0, 1], P[1, 2] - P[0, 2]
+            e2x, e2y, e2z = P[2, 0] - P[0, 0], P[2, 1] - P[0, 1], P[2, 2] - P[0, 2]
+            anx = e1y * e2z - e1z * e2y
+            any_ = e1z * e2x - e1x * e2z
+            anz = e1x * e2y - e1y * e2x
+            an = np.sqrt(anx * anx + any_ * any_ + anz * anz)
+            area = 0.5 * an
+            nx, ny, nz = anx / an, any_ / an, anz / an
+            # forward: the bone's x axis in the triangle's plane (as for the rigid meshes)
+            ex, ey, ez = R00, R10, R20
+            en = ex * nx + ey * ny + ez * nz
+            fx, fy, fz = ex - en * nx, ey - en * ny, ez - en * nz
+            fl = np.sqrt(fx * fx + fy * fy + fz * fz)
+            fx, fy, fz = fx / fl, fy / fl, fz / fl
+            # relative flow at the deformed centroid
+            dx, dy, dz = px - c0, py - c1, pz - c2
+            ux, uy, uz = flow_at(flow, px, py, pz, t)
+            vx_ = ux - (lx + wy * dz - wz * dy + R00 * ub0 + R01 * ub1 + R02 * ub2)
+            vy_ = uy - (ly + wz * dx - wx * dz + R10 * ub0 + R11 * ub1 + R12 * ub2)
+            vz_ = uz - (lz + wx * dy - wy * dx + R20 * ub0 + R21 * ub1 + R22 * ub2)
+            vn = vx_ * nx + vy_ * ny + vz_ * nz
+            sx = ny * fz - nz * fy
+            sy = nz * fx - nx * fz
+            sz = nx * fy - ny * fx
+            vs = vx_ * sx + vy_ * sy + vz_ * sz
+            x = -(vx_ * fx + vy_ * fy + vz_ * fz)
+            (drx, dry, drz, lfx, lfy, lfz, frx, fry, frz) = plate_force(
+                rho, eta, area, nx, ny, nz, vx_, vy_, vz_, vn, vs * sx, vs * sy, vs * sz, x, True,
+                0, cl_tab, cd_tab)
+            Fx = drx + lfx + frx
+            Fy = dry + lfy + fry
+            Fz = drz + lfz + frz
+            add_force(w, b, Fx, Fy, Fz, px, py, pz)
+            # to the modes: F/3 at each vertex, through each vertex's Jacobian (body frame)
+            Fbx = R00 * Fx + R10 * Fy + R20 * Fz
+            Fby = R01 * Fx + R11 * Fy + R21 * Fz
+            Fbz = R02 * Fx + R12 * Fy + R22 * Fz
+            for a in range(3):
+                o9 = wv + 9 * (tri[3 * it + a] - voff)
+                scratch[o9 + 6] += Fbx / 3.0
+                scratch[o9 + 7] += Fby / 3.0
+                scratch[o9 + 8] += Fbz / 3.0
+            if record:
+                o = REC * it
+                rec[o] = Fx
+                rec[o + 1] = Fy
+                rec[o + 2] = Fz
+                rec[o + 3] = px
+                rec[o + 4] = py
+                rec[o + 5] = pz
+                rec[o + 6] = nx
+                rec[o + 7] = ny
+                rec[o + 8] = nz
+                rec[o + 9] = area
+                rec[o + 10] = np.arctan2(abs(vn), x)
+        # the loads on the vertices through their Jacobians: the modes' generalized forces
+        for i in range(nv):
+            o = i * stride
+            o9 = wv + 9 * i
+            for k in range(K):
+                Q[k] += (scratch[o9 + 6] * scratch[o + 3 + 3 * k]
+                         + scratch[o9 + 7] * scratch[o + 4 + 3 * k]
+                         + scratch[o9 + 8] * scratch[o + 5 + 3 * k])
+        # external vertex loads (body frame; tests and calibration)
+        for i in range(nv):
+            gx, gy, gz = ext[3 * (voff + i)], ext[3 * (voff + i) + 1], ext[3 * (voff + i) + 2]
+            if gx == 0.0 and gy == 0.0 and gz == 0.0:
+                continue
+            o = i * stride
+            for k in range(K):
+                Q[k] += (gx * scratch[o + 3 + 3 * k] + gy * scratch[o + 4 + 3 * k]
+                         + gz * scratch[o + 5 + 3 * k])
+            bx, by, bz = scratch[o], scratch[o + 1], scratch[o + 2]
+            add_force(w, b, R00 * gx + R01 * gy + R02 * gz, R10 * gx + R11 * gy + R12 * gz,
+                      R20 * gx + R21 * gy + R22 * gz, ox + R00 * bx + R01 * by + R02 * bz,
+                      oy + R10 * bx + R11 * by + R12 * bz, oz + R20 * bx + R21 * by + R22 * bz)
+        for k in range(K):
+            if not np.isfinite(Q[k]):
+                return 1
+            qfrc[da + k] += Q[k]
+        if record:
+            base = REC * (tri.size // 3)
+            if rec.size >= base + 3 * (voff + nv):
+                for i in range(nv):
+                    o = i * stride
+                    bx, by, bz = scratch[o], scratch[o + 1], scratch[o + 2]
+                    rec[base + 3 * (voff + i)] = ox + R00 * bx + R01 * by + R02 * bz
+                    rec[base + 3 * (voff + i) + 1] = oy + R10 * bx + R11 * by + R12 * bz
+                    rec[base + 3 * (voff + i) + 2] = oz + R20 * bx + R21 * by + R22 * bz
+    return 0
+
+
+SIGNATURE = "ffffi" + "fff" + "iff" + "if" + "i" + "ff" + "fffff" + "f"
+register_kernel("modal_feathers", modal_kernel, SIGNATURE)
+
+
+@dataclass
+class ModalReport:
+    """Per-triangle forces on the deformed feathers (world frame) from :meth:`evaluate`."""
+
+    force: np.ndarray
+    """(n, 3) aerodynamic force per triangle, N."""
+    points: np.ndarray
+    """(n, 3) deformed centroids, m."""
+    normal: np.ndarray
+    """(n, 3) deformed unit normals."""
+    area: np.ndarray
+    """(n,) deformed areas, m^2."""
+    aoa: np.ndarray
+    """(n,) angle of attack, rad."""
+    vertices: np.ndarray
+    """(nvert, 3) deformed mesh vertices (world), in :attr:`ModalFeathers.modes` order."""
+
+
+class ModalFeathers(CompiledProvider):
+    """The modal feathers of one compiled modal dove: the force provider and its geometry."""
+
+    kernel = "modal_feathers"
+
+    def __init__(self, model: mujoco.MjModel, modes: Sequence[FeatherModes], table: CoefficientTable,
+                 density: float, flow: FlowField | None = None, name: str = "modal feathers",
+                 plucked: tuple[str, ...] = ()):
+        """``modes``: mass-scaled modes (:func:`dove_feather_modes`) of feathers whose mode
+        joints ``<name>_mode<k>`` the model has (:func:`modal_xml`)."""
+        self.model = model
+        self.name = name
+        self.flow = flow or FlowField()
+        if self.flow.has_python:
+            raise InputError("modal feathers need compiled flow fields (no PythonField)")
+        self.modes = tuple(modes)
+        self.K = K = self.modes[0].omega.size
+        fint, ff, grid, vst, vxs, tris = [], [], [], [], [], []
+        voff = toff = goff = 0
+        self.vert_offset = []
+        for fm in self.modes:
+            b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, fm.body)
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{fm.name}_mode1")
+            if b < 0 or j < 0:
+                raise InputError(f"model lacks feather body {fm.body} or mode joint {fm.name}_mode1 "
+                                 "(build it with feathers='modal')")
+            for k in range(1, K):
+                jk = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{fm.name}_mode{k + 1}")
+                if model.jnt_dofadr[jk] != model.jnt_dofadr[j] + k:
+                    raise InputError(f"feather {fm.name}: its mode joints are not consecutive DOF")
+            nv, nt = len(fm.vert_x), len(fm.faces)
+            ng = fm.slope.shape[0]
+            # a plucked feather keeps its modes (driven by inertia alone) but no force polygons
+            fint.append([b, model.jnt_qposadr[j], model.jnt_dofadr[j], fm.stations, fm.sub, voff,
+                         nv, toff, 0 if fm.name in plucked else nt, goff])
+            ff.append(np.concatenate([fm.root, fm.shaft, fm.chord, fm.normal, [fm.length],
+                                      fm.gamma, fm.first_moment.ravel()]))
+            grid.append(np.stack([fm.slope, fm.twist], axis=-1).ravel())
+            vst.append(fm.vert_station)
+            vxs.append(fm.vert_x)
+            tris.append(fm.faces + voff)
+            self.vert_offset.append(voff)
+            voff += nv
+            toff += nt
+            goff += ng * K * 2
+        self.nvert, self.ntri = voff, toff
+        i64 = lambda a: np.ascontiguousarray(np.concatenate(a) if isinstance(a, list) else a,  # noqa: E731
+                                             dtype=np.int64).ravel()
+        f64 = lambda a: np.ascontiguousarray(np.concatenate(a) if isinstance(a, list) else a,  # noqa: E731
+                                             dtype=float).ravel()
+        self._fint = i64(np.array(fint))
+        self._ff = f64(ff)
+        self._grid = f64(grid)
+        self._vst = i64(vst)
+        self._vx = f64(vxs)
+        self._tri = i64(tris)
+        self.ext = np.zeros(3 * self.nvert)
+        """External loads on the mesh vertices (body frame, N), for tests and calibration."""
+        maxv = max(len(fm.vert_x) for fm in self.modes)
+        self._scratch = np.zeros(maxv * 3 * (1 + K) + 3 * (1 + K) + 3 * K + 9 + 9 * maxv)
+        cl, cd = pseudo_angle_tables(table)
+        self._cl, self._cd = cl, cd
+        self._fluid = np.array([density, 0.0, K, maxv * 3 * (1 + K)])
+        self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)
+        self._no_record = np.zeros(1)
+        self.qadr = self._fint.reshape(-1, FI)[:, 1].copy()
+        self.dadr = self._fint.reshape(-1, FI)[:, 2].copy()
+
+    def arrays(self, model, data, record: np.ndarray | None = None):
+        return [data.xpos.reshape(-1), data.xmat.reshape(-1), data.cvel.reshape(-1),
+                data.subtree_com.reshape(-1), self._rootid, data.qpos, data.qvel,
+                data.qfrc_passive, self._fint, self._ff, self._grid, self._vst, self._vx,
+                self._tri, self._scratch, self.ext, self._cl, self._cd, self.flow.params,
+                self._fluid, time_view(data), self._no_record if record is None else record]
+
+    def register(self, data: mujoco.MjData) -> Registration:
+        return register(self.model, data, self)
+
+    def evaluate(self, data: mujoco.MjData) -> ModalReport:
+        """Forces and deformed geometry for the current state (call ``mj_forward`` first);
+        touches neither ``qfrc_passive`` nor the state."""
+        rec = np.zeros(REC * self.ntri + 3 * self.nvert)
+        w = np.zeros(6 * self.model.nbody)
+        arrays = self.arrays(self.model, data, record=rec)
+        arrays[7] = data.qfrc_passive.copy()  # a scratch qfrc: leave the data's alone
+        modal_kernel(w, *arrays)
+        r = rec[:REC * self.ntri].reshape(-1, REC)
+        return ModalReport(r[:, 0:3].copy(), r[:, 3:6].copy(), r[:, 6:9].copy(), r[:, 9].copy(),
+                           r[:, 10].copy(), rec[REC * self.ntri:].reshape(-1, 3).copy())
+
+    def coordinates(self, data: mujoco.MjData) -> np.ndarray:
+        """(n_feathers, K) modal coordinates."""
+        K = self.K
+        return np.array([data.qpos[a:a + K] for a in self.qadr])
+
+    def body_vertices(self, q: np.ndarray, feather: int) -> np.ndarray:
+        """(nv, 3) deformed vertices of feather ``feather`` in its body frame for coordinates q."""
+        fm = self.modes[feather]
+        K = self.K
+        fi = self._fint.reshape(-1, FI)[feather]
+        wo = len(fm.vert_x) * 3 * (1 + K)
+        out = np.zeros(wo + 3 * (1 + K))
+        warp(K, self._ff, (13 + 4 * K) * feather, self._grid, fi[9], fi[3], fi[4],
+             np.ascontiguousarray(q, dtype=float), self._vst, self._vx, fi[5], fi[6], out, wo)
+        return out[:wo].reshape(len(fm.vert_x), 1 + K, 3)[:, 0, :].copy()
+
+    def feather_index(self, name: str) -> int:
+        for i, fm in enumerate(self.modes):
+            if fm.name == name:
+                return i
+        raise InputError(f"no feather named {name!r}")
+
+    def tip(self, data: mujoco.MjData, feather: int) -> tuple[float, float]:
+        """(deflection along the rest normal, m; elastic twist, rad) of the shaft tip of
+        feather ``feather``: bending and twisting relative to its bone (or twist hinge)."""
+        fm = self.modes[feather]
+        q = data.qpos[self.qadr[feather]:self.qadr[feather] + self.K]
+        v = self.body_vertices(q, feather)
+        tip = np.flatnonzero(fm.vert_station == fm.stations - 1)
+        a, b = tip[0], tip[1]
+        xa, xb = fm.vert_x[a], fm.vert_x[b]
+        shaft = (xb * v[a] - xa * v[b]) / (xb - xa)  # the point at x = 0 between them
+        rest = fm.root + fm.length * fm.shaft
+        return float((shaft - rest) @ fm.normal), float(q @ fm.twist[-1])
+
+
+class MeshDeformer:
+    """Draws the deformed feathers: writes each feather's deformed vertices into the mesh
+    vertex arrays of a (rendering) model (the feather mesh and its underside twin), to be
+    uploaded to the GPU before a frame.
+
+    Use with a *copy* of the modal model (the meshes change)::
+
+        view = copy.copy(dove.model)   # or a second Dove.load(feathers="modal").model
+        deformer = MeshDeformer(view, flight.modal)
+        for q in qpos_frames:
+            d.qpos[:] = q; mujoco.mj_forward(view, d)
+            deformer.apply(d)                      # mesh_vert of the feathers
+            deformer.upload(renderer)              # mjr_uploadMesh for each of them
+            renderer.update_scene(d, cam); frame = renderer.render()
+    """
+
+    def __init__(self, model: mujoco.MjModel, modal: ModalFeathers):
+        from flapsim.bird.model import UNDERSIDE
+
+        self.model = model
+        self.modal = modal
+        self.meshes: list[tuple[int, list[int], np.ndarray, np.ndarray]] = []
+        for i, fm in enumerate(modal.modes):
+            ids = []
+            for name in (fm.name, fm.name + UNDERSIDE):
+                g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+                if g < 0:
+                    raise InputError(f"model has no feather mesh geom {name!r}")
+                ids.append(int(model.geom_dataid[g]))
+            g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, fm.name)
+            R = np.zeros(9)
+            mujoco.mju_quat2Mat(R, model.geom_quat[g])
+            # body frame -> mesh frame: v_mesh = R^T (v_body - geom_pos)
+            self.meshes.append((i, ids, R.reshape(3, 3), model.geom_pos[g].copy()))
+            if model.mesh_vertnum[ids[0]] != len(fm.vert_x):
+                raise InputError(f"feather mesh {fm.name} has {model.mesh_vertnum[ids[0]]} vertices, "
+                                 f"its modes {len(fm.vert_x)}")
+
+    def body_frame_vertices(self, data: mujoco.MjData) -> list[np.ndarray]:
+        """Deformed vertices of every feather in its body frame."""
+        out = []
+        for i, _, _, _ in self.meshes:
+            a = self.modal.qadr[i]
+            out.append(self.modal.body_vertices(data.qpos[a:a + self.modal.K], i))
+        return out
+
+    def apply(self, data: mujoco.MjData) -> None:
+        m = self.model
+        for (_, ids, R, pos), vb in zip(self.meshes, self.body_frame_vertices(data), strict=True):
+            vm = (vb - pos) @ R
+            for mid in ids:
+                a = m.mesh_vertadr[mid]
+                m.mesh_vert[a:a + len(vm)] = vm
+
+    def upload(self, renderer: mujoco.Renderer) -> None:
+        ctx = renderer._mjr_context  # the bindings keep the GL context here
+        for _, ids, _, _ in self.meshes:
+            for mid in ids:
+                mujoco.mjr_uploadMesh(self.model, ctx, mid)

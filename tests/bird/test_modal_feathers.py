@@ -1,0 +1,340 @@
+"""Modal (deformable) feathers: statics against Euler-Bernoulli, frequency against a
+finite-difference linearization, energy, warping, the primaries' twist, rest equivalence with
+the rigid feathers, snapshots, and the base controller's flight."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from flapsim.bird.feather_modes import ModalParams, ShaftBeam, euler_bernoulli_tip_deflection
+from flapsim.bird.flight import DoveFlight, FlightConfig, flight_metrics, fly
+from flapsim.bird.modal_feathers import ModalFeathers, clamped_feather_xml, dove_feather_modes
+from flapsim.bird.model import Dove, DoveParams, _Inertia, _inertial_xml
+from flapsim.fluid.coefficients import get_table
+
+RIGID_HASH = "922b1bc90eae"  # the bundled controller database is bound to it
+
+
+@pytest.fixture(scope="module")
+def params():
+    return DoveParams.load()
+
+
+@pytest.fixture(scope="module")
+def modal_dove():
+    return Dove.load(feathers="modal")
+
+
+def _feather(params, name, mp=None):
+    mp = mp or ModalParams()
+    return next(fm for fm in dove_feather_modes(params, mp) if fm.name == name)
+
+
+def _clamped(params, name, mp=None, density=1.225):
+    mp = mp or ModalParams()
+    fm = _feather(params, name, mp)
+    m = mujoco.MjModel.from_xml_string(clamped_feather_xml(fm, mp, params.timestep))
+    prov = ModalFeathers(m, [fm], get_table("dickinson1999_profile"), density)
+    return fm, m, prov
+
+
+def test_rigid_dove_is_unchanged():
+    assert Dove.load().hash() == RIGID_HASH
+
+
+def test_static_tip_load_matches_euler_bernoulli(params):
+    """A primary (tapering EI and vane) clamped at its root under a 5 mN load at the shaft tip,
+    settled by simulation, against int F (L - s)^2 / EI(s) ds."""
+    mp = ModalParams(damping_ratio=1.0)  # settle fast; the static answer does not depend on it
+    fm, m, prov = _clamped(params, "l_p6", mp)
+    d = mujoco.MjData(m)
+    F = 5e-3
+    lf = params.primary_lead_fraction
+    tip = np.flatnonzero(fm.vert_station == fm.stations - 1)
+    lead, trail = (tip[0], tip[1]) if fm.vert_x[tip[0]] > 0 else (tip[1], tip[0])
+    # split so the load acts on the shaft: no twisting moment about it
+    prov.ext[3 * lead:3 * lead + 3] = (1 - lf) * F * fm.normal
+    prov.ext[3 * trail:3 * trail + 3] = lf * F * fm.normal
+    with prov.register(d):
+        mujoco.mj_step(m, d, nstep=600)
+    q = d.qpos[:fm.omega.size]
+    v = prov.body_vertices(q, 0)
+    shaft_tip = (1 - lf) * v[lead] + lf * v[trail]  # the shaft point between them
+    rest_tip = fm.root + fm.length * fm.shaft
+    deflection = (shaft_tip - rest_tip) @ fm.normal
+    eb = euler_bernoulli_tip_deflection(F, fm.length, fm.ei)
+    assert deflection == pytest.approx(eb, rel=0.10)
+    assert 0 < deflection < 0.05 * fm.length  # small-deflection regime
+
+
+def test_euler_bernoulli_closed_form_against_quadrature():
+    L, ei = 0.12, (0.018, 0.0019)
+    s = np.linspace(0, L, 200001)
+    f = (L - s) ** 2 / (ei[0] + (ei[1] - ei[0]) * s / L)
+    assert euler_bernoulli_tip_deflection(1.0, L, ei) == pytest.approx(np.trapezoid(f, s), rel=1e-6)
+
+
+def test_first_frequency_matches_finite_difference_linearization(params):
+    """MuJoCo's finite-difference linearization of the clamped feather's step (all of the
+    point masses, springs and the kernel's forces assembled) against the shell reduction's
+    first eigenfrequency; the step's symplectic Euler shifts it by asin(w dt/2) 2/dt."""
+    mp = ModalParams(damping_ratio=0.0)
+    fm, m, prov = _clamped(params, "l_s5", mp)
+    d = mujoco.MjData(m)
+    with prov.register(d):
+        mujoco.mj_forward(m, d)
+        n = 2 * m.nv
+        A = np.zeros((n, n))
+        mujoco.mjd_transitionFD(m, d, 1e-7, True, A, None, None, None)
+    lam = np.linalg.eigvals(A)
+    dt = m.opt.timestep
+    w_discrete = np.sort(np.abs(np.angle(lam)))[::2] / dt  # conjugate pairs
+    w1 = fm.omega[0]
+    assert w_discrete[0] == pytest.approx(2 / dt * np.arcsin(w1 * dt / 2), rel=0.01)
+    assert w_discrete[0] == pytest.approx(w1, rel=0.02)
+
+
+def test_first_frequency_matches_a_finite_difference_beam(params):
+    """Independent check of the shell reduction: a secondary (symmetric vane, so it bends
+    without twisting) against a 400-cell finite-difference Euler-Bernoulli beam with the same
+    EI(s) and the strip's mass per length, clamped at the root, free at the tip."""
+    fm = _feather(params, "l_s5")
+    N = 400
+    L = fm.length
+    h = L / N
+    s = np.arange(N + 1) * h
+    st = np.arange(fm.stations) * L / (fm.stations - 1)
+    widths = np.array([np.ptp(fm.vert_x[fm.vert_station == j]) for j in range(fm.stations)])
+    width = np.interp(s, st, widths)
+    mpl = fm.mass / np.trapezoid(width, s) * width  # uniform mass per area
+    EI = fm.ei[0] + (fm.ei[1] - fm.ei[0]) * s / L
+    # unknowns w_1..w_N (w_0 = 0); curvature at 0..N-1 with the clamp's ghost w_-1 = w_1;
+    # moment EI w'' zero at the tip; shear zero there (ghost M_N+1 = M_N-1)
+    curv = np.zeros((N + 1, N))
+    curv[0, 0] = 2 / h**2
+    for i in range(1, N):
+        if i - 2 >= 0:
+            curv[i, i - 2] = 1 / h**2
+        curv[i, i - 1] = -2 / h**2
+        if i < N:
+            curv[i, i] = 1 / h**2
+    moment = EI[:, None] * curv
+    moment[N] = 0.0
+    load = np.zeros((N, N))
+    for i in range(1, N):
+        load[i - 1] = (moment[i - 1] - 2 * moment[i] + moment[i + 1]) / h**2
+    load[N - 1] = (2 * moment[N - 1] - 2 * moment[N]) / h**2
+    ev = np.linalg.eigvals(load / mpl[1:, None])
+    ev = np.sort(ev.real[ev.real > 1.0])
+    assert np.sqrt(ev[0]) == pytest.approx(fm.omega[0], rel=0.03)
+
+
+def test_undamped_feather_energy_does_not_grow(params):
+    """1,000 unforced steps of a clamped primary with every mode displaced, no structural
+    damping: the energy at the end is at most what it was at the start (the resolved mode is
+    stepped symplectically, the unresolvable ones by backward Euler, which only dissipates)."""
+    mp = ModalParams(damping_ratio=0.0)
+    fm, m, _ = _clamped(params, "l_p3", mp)
+    d = mujoco.MjData(m)
+    K = fm.omega.size
+    d.qpos[:K] = 0.005 / fm.unit  # 5 mm of each mode's largest deflection
+    k = m.jnt_stiffness[:K]
+
+    def energy():
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_forward(m, d)
+        mujoco.mj_fullM(m, d, M)
+        return 0.5 * d.qvel @ M @ d.qvel + 0.5 * np.sum(k * d.qpos[:K] ** 2)
+
+    e = []
+    for _ in range(1000):
+        mujoco.mj_step(m, d)
+        e.append(energy())
+    e = np.array(e)
+    assert e[-100:].max() <= e[:100].max() * (1 + 1e-9)
+    # the resolved first mode alone: symplectic, its energy oscillates but neither grows nor
+    # decays
+    d.qpos[:] = 0
+    d.qvel[:] = 0
+    d.qpos[0] = 0.005 / fm.unit[0]
+    e1 = []
+    for _ in range(1000):
+        mujoco.mj_step(m, d)
+        e1.append(energy())
+    e1 = np.array(e1)
+    assert e1[-50:].max() <= e1[:50].max() * (1 + 1e-9)
+    assert e1[-50:].max() >= 0.98 * e1[:50].max()
+
+
+def test_warping_jacobian_and_length(params):
+    """The vertex Jacobians are the derivatives of the warped positions, and a strongly bent
+    feather keeps its length (modal warping) where linear modes would stretch it."""
+    fm, m, prov = _clamped(params, "l_p8")
+    K = fm.omega.size
+    q = np.array([0.3, -0.2, 0.1, 0.05]) / fm.unit[:K] * 0.05
+    wo = len(fm.vert_x) * 3 * (1 + K)
+    from flapsim.bird.modal_feathers import warp
+
+    def full(qq):
+        out = np.zeros(wo + 3 * (1 + K))
+        fi = prov._fint
+        warp(K, prov._ff, 0, prov._grid, fi[9], fi[3], fi[4], np.asarray(qq, float), prov._vst,
+             prov._vx, fi[5], fi[6], out, wo)
+        return out[:wo].reshape(len(fm.vert_x), 1 + K, 3)
+
+    J = full(q)[:, 1:, :]
+    for k in range(K):
+        dq = np.zeros(K)
+        dq[k] = 1e-6 / abs(fm.unit[k])
+        fd = (full(q + dq)[:, 0] - full(q - dq)[:, 0]) / (2 * dq[k])
+        np.testing.assert_allclose(J[:, k], fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
+    # bend the first mode until the tip moves 40 % of the length
+    qb = np.zeros(K)
+    qb[0] = 0.4 * fm.length / fm.unit[0]
+    v = prov.body_vertices(qb, 0)
+    lf = params.primary_lead_fraction
+    centres = [(1 - lf) * v[2 * j] + lf * v[2 * j + 1] for j in range(fm.stations)]
+    arc = sum(np.linalg.norm(np.diff(centres, axis=0), axis=1))
+    assert arc == pytest.approx(fm.length, rel=0.01)
+    linear_tip = fm.root + fm.length * fm.shaft + fm.normal * (qb[0] * fm.unit[0])
+    assert np.linalg.norm(linear_tip - fm.root) > 1.07 * fm.length  # what warping avoids
+
+
+def _primary_on_twist_hinge(params, k: int = 4):
+    """A primary on its twist hinge (the dove's spring, damper and one-sided range), the hinge
+    fixed in space, gravity off."""
+    from flapsim.bird.model import left_feathers
+
+    fe = next(f for f in left_feathers(params) if f.name == f"l_p{k + 1}")
+    inert = _Inertia()
+    inert.plates([fe])
+    tw = np.radians(params.twist_max_deg)
+    ax = " ".join(f"{x:.9g}" for x in -fe.shaft)
+    xml = f"""<mujoco><compiler angle="radian"/>
+      <option timestep="{params.timestep:.10g}" integrator="implicitfast" gravity="0 0 0"/>
+      <worldbody><body name="p">{_inertial_xml(inert)}
+      <joint name="twist" axis="{ax}" range="0 {tw:.6g}" stiffness="{params.twist_stiffness:.6g}"
+       damping="{params.twist_damping:.6g}" solreflimit="0.001 1" solimplimit="0.95 0.99 0.001"/>
+      </body></worldbody></mujoco>"""
+    return fe, mujoco.MjModel.from_xml_string(xml)
+
+
+def test_twist_relaxes_with_the_spring_time_constant(params):
+    """H th'' + c th' + k th = 0 with c = 0.6e-5 N m s/rad, k = 0.6e-4 N m/rad and the
+    primary's inertia about its shaft H: overdamped (c^2 >> 4 k H), the slow root is
+    s = (-c + sqrt(c^2 - 4 k H)) / (2 H) ~ -k/c, tau = 1/|s| ~ c/k = 0.1 s."""
+    fe, m = _primary_on_twist_hinge(params)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    M = np.zeros((1, 1))
+    mujoco.mj_fullM(m, d, M)
+    H = M[0, 0]
+    c, k = params.twist_damping, params.twist_stiffness
+    assert c * c > 40 * k * H  # strongly overdamped
+    s_slow = (-c + np.sqrt(c * c - 4 * k * H)) / (2 * H)
+    tau = -1 / s_slow
+    assert tau == pytest.approx(c / k, rel=0.01)
+    d.qpos[0] = 0.5
+    t, th = [], []
+    for _ in range(int(0.3 / m.opt.timestep)):
+        mujoco.mj_step(m, d)
+        t.append(d.time)
+        th.append(d.qpos[0])
+    t, th = np.array(t), np.array(th)
+    sel = (t > 0.02) & (t < 0.25)  # after the fast root has died out
+    slope = np.polyfit(t[sel], np.log(th[sel]), 1)[0]
+    assert -1 / slope == pytest.approx(tau, rel=0.03)
+
+
+@pytest.mark.parametrize("torque", [-3e-4, 3e-4])
+def test_twist_stays_within_its_one_sided_limit(params, torque):
+    """Pushed either way by 3e-4 N m (about the largest aerodynamic twisting torque on a
+    primary, 5x the spring's torque at 1 rad), the twist settles on its stop (0, or
+    twist_max) within 0.5 deg, and overshoots it by less than 3 deg when it strikes it
+    (MuJoCo's soft limit, solref 1 ms)."""
+    fe, m = _primary_on_twist_hinge(params)
+    d = mujoco.MjData(m)
+    d.qpos[0] = 0.3
+    d.qfrc_applied[0] = torque
+    lo = hi = d.qpos[0]
+    for _ in range(2000):
+        mujoco.mj_step(m, d)
+        lo, hi = min(lo, d.qpos[0]), max(hi, d.qpos[0])
+    top = np.radians(params.twist_max_deg)
+    assert lo > -np.radians(3.0) and hi < top + np.radians(3.0)
+    stop = 0.0 if torque < 0 else top
+    assert d.qpos[0] == pytest.approx(stop, abs=np.radians(0.5))
+
+
+def test_modal_primaries_twist_only_one_way(modal_dove):
+    """In flight (two wingbeats of the base controller) the modal dove's primaries twist open
+    at the upstroke and stay shut at the downstroke, as the rigid dove's
+    (``test_flight.test_primaries_twist_only_one_way``)."""
+    f = fly(modal_dove, 2)
+    m = modal_dove.model
+    adr = [m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"l_p{k}_twist")]
+           for k in range(1, 11)]
+    tw = f.qpos[:, adr]
+    assert tw.min() > -np.radians(3.0)
+    assert np.radians(20.0) < tw.max() < np.radians(DoveParams.load().twist_max_deg + 3.0)
+
+
+def test_undeformed_modal_feathers_feel_the_rigid_forces(modal_dove):
+    """At rest deformation the deformed-triangle kernel gives the rigid engine's forces
+    (same triangles, same formula), moving through the same air."""
+    rig = Dove.load()
+    out = []
+    for dv in (rig, modal_dove):
+        fl = DoveFlight(dv, use_rollout=False)
+        try:
+            fl.reset(FlightConfig())
+            F, P, feather = fl.aero_forces()
+            out.append((F[feather].sum(0), np.cross(P[feather], F[feather]).sum(0)))
+        finally:
+            fl.close()
+    np.testing.assert_allclose(out[1][0], out[0][0], rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(out[1][1], out[0][1], rtol=1e-5, atol=1e-7)
+    assert modal_dove.mass == pytest.approx(rig.mass, rel=1e-9)
+
+
+def test_modal_state_is_in_the_snapshot(modal_dove):
+    """The modes are joints: restoring a full-physics state with the warm start repeats the
+    continuation bit for bit (what the controller's snapshots rely on)."""
+    fl = DoveFlight(modal_dove, use_rollout=False)
+    try:
+        fl.reset(FlightConfig())
+        m, d = fl.model, fl.data
+        d.ctrl[:] = 0.01
+        mujoco.mj_step(m, d, nstep=100)
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        s = np.empty(mujoco.mj_stateSize(m, spec))
+        mujoco.mj_getState(m, d, s, spec)
+        ws = d.qacc_warmstart.copy()
+        assert np.abs(fl.modal.coordinates(d)).max() > 0
+        mujoco.mj_step(m, d, nstep=100)
+        a = d.qpos.copy()
+        mujoco.mj_setState(m, d, s, spec)
+        d.qacc_warmstart[:] = ws
+        mujoco.mj_step(m, d, nstep=100)
+        np.testing.assert_array_equal(d.qpos, a)
+    finally:
+        fl.close()
+
+
+def test_modal_base_controller_flies_ten_wingbeats_along_the_line(modal_dove):
+    f = fly(modal_dove, 10)
+    met = flight_metrics(f)
+    assert met["finite"]
+    assert met["max_vertical_deviation"] < 0.3 and met["max_lateral_deviation"] < 0.3
+    assert 0 < np.abs(f.qpos[:, 72:]).max()  # the feathers did deform
+
+
+def test_shaft_beam_static_matches_closed_form():
+    """The beam elements alone (before the modal truncation) under a tip load."""
+    L, ei = 0.11, (0.018, 0.0019)
+    beam = ShaftBeam(L, ei, (1.0, 1.0), 16)
+    f = np.zeros(beam.ndof)
+    f[3 * 16] = 1e-3
+    free = np.arange(3, beam.ndof)
+    u = np.linalg.solve(beam.K[np.ix_(free, free)], f[free])
+    assert u[3 * 16 - 3] == pytest.approx(euler_bernoulli_tip_deflection(1e-3, L, ei), rel=1e-3)
