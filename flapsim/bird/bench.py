@@ -198,3 +198,32 @@ def run_controller(args: argparse.Namespace) -> dict:
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
     return out
+
+
+def run_eval(args: argparse.Namespace) -> dict:
+    """``flapsim bench eval``: the whole flight evaluation suite (``flapsim eval --scenario
+    all``) on ``--workers`` processes (default 2): its wall time, the simulated seconds per
+    wall second, and the parallel speed-up (the runs' own wall times summed over the suite's)
+    measured in the same run."""
+    from flapsim import scenarios
+    from flapsim.commands.eval import execute
+
+    workers = int(getattr(args, "workers", None) or 2)
+    opts = scenarios.EvalOptions(db=getattr(args, "db", None))
+    runs = [(n, opts) for n in scenarios.names(family="flight", all_only=True)]
+    t0 = time.perf_counter()
+    results = execute(runs, workers)
+    wall = time.perf_counter() - t0
+    busy = float(sum(r["wall_s"] for r in results))
+    sim = 0.0
+    for r in results:
+        m = r.get("metrics", {})
+        sim += float(m.get("simulated_s") or 0.0)
+    out = {"target": "eval", "workers": workers, "runs": len(results), "wall_s": wall,
+           "runs_wall_s": busy, "speedup": busy / wall, "parallel_efficiency": busy / wall / workers,
+           "simulated_s": sim, "simulated_per_wall_s": sim / wall,
+           "failed": [r["scenario"] for r in results if not r.get("ok")]}
+    print(f"flight evaluation suite: {len(results)} runs in {wall:.0f} s on {workers} workers "
+          f"(speed-up {out['speedup']:.2f}, efficiency {out['parallel_efficiency']:.2f}); "
+          f"{sim:.0f} s simulated, {out['simulated_per_wall_s']:.1f} simulated s per wall s")
+    return out

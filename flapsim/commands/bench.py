@@ -20,6 +20,7 @@ BENCHES: dict[str, str] = {
     "dove": "flapsim.bird.bench:run",
     "train": "flapsim.bird.bench:run_train",
     "controller": "flapsim.bird.bench:run_controller",
+    "eval": "flapsim.bird.bench:run_eval",
 }
 
 
@@ -36,7 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="comma-separated polygon counts for 'forces' (default 50,300,1000; each 1..100000)",
     )
     p.add_argument("--workers", type=integer(1, 4096), default=None,
-                   help="worker processes for 'train' (default 2, or fewer CPU cores)")
+                   help="worker processes for 'train' and 'eval' (default 2, or fewer CPU cores)")
     p.add_argument("--samples", type=integer(1, 100000), default=None,
                    help="samples for 'train' (default 48 per worker)")
     p.add_argument("--wingbeats", type=integer(1, 100000), default=None,

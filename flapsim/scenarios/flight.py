@@ -135,12 +135,13 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
 
     direction = sc.params["direction"]
     forces = (8.0,) if opt.quick else PUSH_FORCES_N
-    table, files, worst = [], [], None
+    table, files, worst, sim = [], [], None, 0.0
     for f in forces:
         task = Task(paths.straight(40.0 if opt.quick else 60.0),
                     pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M)
         r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=bool(opt.video_dir))
         files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
+        sim += r.metrics["simulated_s"]
         back = task.path.distance(r.positions[-1])
         survived = r.ok and back <= PUSH_BACK_M
         table.append({"newtons": f, "status": r.status, "survived": survived,
@@ -154,7 +155,8 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
     return {"status": "completed" if survived_8 else "lost", "ok": survived_8,
             "reason": "" if survived_8 else f"lost at {worst:g} N",
             "metrics": {"direction": direction, "strongest_survived_N": strongest,
-                        "first_lost_N": worst, "table": table}, "files": files}
+                        "first_lost_N": worst, "table": table, "simulated_s": sim},
+            "files": files}
 
 
 # -- flock ----------------------------------------------------------------------------------
@@ -187,6 +189,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
                        + ([f"birds came {sep:.2f} m close"] if collided else []))
     return {"status": "completed" if ok else "lost", "ok": ok, "reason": reason,
             "metrics": {"birds": len(results), "min_separation_m": sep, "collisions": int(collided),
+                        "simulated_s": float(sum(r.metrics["simulated_s"] for r in results)),
                         "Ef_per_wingbeat": float(np.mean([r.metrics.get("Ef_per_wingbeat", np.nan)
                                                           for r in results])),
                         "birds_lost": len(lost)},
