@@ -73,8 +73,8 @@ class ModalParams:
     is computed separately by the force engine)."""
     elements: int = 16
     """Beam elements along the shaft."""
-    grid_per_segment: int = 4
-    """Warping integration points per mesh segment along the shaft (trapezoid rule)."""
+    grid_per_segment: int = 2
+    """Warping integration intervals per mesh segment along the shaft (even: Simpson's rule)."""
     implicit_above: float = 1.0
     """Modes with omega * timestep above this are integrated implicitly (backward Euler:
     stable, but numerically damped: the timestep cannot resolve them); the others
@@ -233,6 +233,8 @@ def feather_modes(fe: fz.Feather, lead_fraction: float, segments: int, params: M
                   ) -> FeatherModes:
     """The modes of one feather mesh built by :func:`flapsim.bird.feathers.strip`."""
     sub = params.grid_per_segment
+    if sub < 2 or sub % 2:
+        raise InputError(f"grid_per_segment must be even and >= 2, got {sub}")
     v = np.asarray(fe.vertices, float)
     if len(v) != 2 * (segments + 1):
         raise InputError(f"feather {fe.name}: {len(v)} vertices, expected 2 x {segments + 1}")

@@ -210,13 +210,17 @@ def warp(K, ff, fo, grid, go, nst, sub, q, vst, vx, voff, nv, out, wo):
     ng = (nst - 1) * sub + 1
     h = L / (ng - 1)
     stride = 3 * (1 + K)
-    # centreline C and its derivatives D_k, marched along the grid (trapezoid)
+    # centreline C and its derivatives D_k, marched along the grid (Simpson's rule over each
+    # pair of grid intervals: sub is even, the stations fall on even points)
     C = out[wo:wo + 3]
     D = out[wo + 3:wo + 3 + 3 * K].reshape((K, 3))
     for k in range(3 * (1 + K)):
         out[wo + k] = 0.0
-    cbp = 1.0
-    sbp = 0.0
+    c2 = 1.0  # cos, sin of the bend angle two and one grid points back
+    s2 = 0.0
+    c1 = 1.0
+    s1 = 0.0
+    w6 = 2.0 * h / 6.0
     for g in range(ng):
         beta = 0.0
         tau = 0.0
@@ -224,17 +228,22 @@ def warp(K, ff, fo, grid, go, nst, sub, q, vst, vx, voff, nv, out, wo):
             beta += q[k] * grid[go + (g * K + k) * 2]
             tau += q[k] * grid[go + (g * K + k) * 2 + 1]
         cb, sb = np.cos(beta), np.sin(beta)
-        if g > 0:
-            C[0] += 0.5 * h * (cbp * sx + sbp * nx + cb * sx + sb * nx)
-            C[1] += 0.5 * h * (cbp * sy + sbp * ny + cb * sy + sb * ny)
-            C[2] += 0.5 * h * (cbp * sz + sbp * nz + cb * sz + sb * nz)
+        if g > 0 and g % 2 == 0:
+            C[0] += w6 * (c2 * sx + s2 * nx + 4.0 * (c1 * sx + s1 * nx) + cb * sx + sb * nx)
+            C[1] += w6 * (c2 * sy + s2 * ny + 4.0 * (c1 * sy + s1 * ny) + cb * sy + sb * ny)
+            C[2] += w6 * (c2 * sz + s2 * nz + 4.0 * (c1 * sz + s1 * nz) + cb * sz + sb * nz)
             for k in range(K):
-                a0 = grid[go + ((g - 1) * K + k) * 2]
-                a1 = grid[go + (g * K + k) * 2]
-                D[k, 0] += 0.5 * h * (a0 * (-sbp * sx + cbp * nx) + a1 * (-sb * sx + cb * nx))
-                D[k, 1] += 0.5 * h * (a0 * (-sbp * sy + cbp * ny) + a1 * (-sb * sy + cb * ny))
-                D[k, 2] += 0.5 * h * (a0 * (-sbp * sz + cbp * nz) + a1 * (-sb * sz + cb * nz))
-        cbp, sbp = cb, sb
+                a0 = grid[go + ((g - 2) * K + k) * 2]
+                a1 = 4.0 * grid[go + ((g - 1) * K + k) * 2]
+                a2 = grid[go + (g * K + k) * 2]
+                D[k, 0] += w6 * (a0 * (-s2 * sx + c2 * nx) + a1 * (-s1 * sx + c1 * nx)
+                                 + a2 * (-sb * sx + cb * nx))
+                D[k, 1] += w6 * (a0 * (-s2 * sy + c2 * ny) + a1 * (-s1 * sy + c1 * ny)
+                                 + a2 * (-sb * sy + cb * ny))
+                D[k, 2] += w6 * (a0 * (-s2 * sz + c2 * nz) + a1 * (-s1 * sz + c1 * nz)
+                                 + a2 * (-sb * sz + cb * nz))
+        c2, s2 = c1, s1
+        c1, s1 = cb, sb
         if g % sub != 0:
             continue
         j = g // sub
