@@ -73,7 +73,7 @@ RANGES: dict[str, Range] = {
     "friction": Range(0.0, 1000.0, "N s/m^3"),
     "current": Range(-5.0, 5.0, "m/s"),
     "flow_ratio": Range(0.0, 1.0, ""),
-    "timestep": Range(1e-5, 0.05, "s"),
+    "timestep": Range(1e-4, 0.01, "s"),
     "mass": Range(1e-6, 1000.0, "kg"),
     "side": Range(1e-3, 10.0, "m"),
     "position": Range(-1000.0, 1000.0, "m"),

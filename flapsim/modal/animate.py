@@ -260,7 +260,11 @@ def animate(
     qpos = apply_soft_limits(model, qpos, limits)
     residual = 0.0
     if projector is not None and projector.active:
-        for k in range(times.size):
+        from tqdm import tqdm
+
+        # a few Gauss-Newton steps per frame: show progress on long animations
+        for k in tqdm(range(times.size), desc="projecting onto the constraints", unit="frame",
+                      leave=False, disable=times.size < 1000):
             qpos[k], r = projector.project(qpos[k])
             residual = max(residual, r)
     return Animation(times, qpos, dq, limit_overshoot(model, qpos), residual)
