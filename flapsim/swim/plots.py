@@ -38,21 +38,28 @@ def _save(fig, path: str) -> None:
 
 def track_plot(result, path: str, title: str | None = None) -> None:
     """Top view of ``result`` (a :class:`flapsim.swim.simulate.SwimResult`): the centre
-    of mass's track, the start, and the path or (moving) target it steered for."""
+    of mass's track, the start, and the path or (moving) target it steered for; for a
+    target with a depth, a second panel shows depth against distance along x."""
     from flapsim.swim.targets import Path, Point
 
     _check_png(path)
-    fig = _figure()
-    ax = fig.add_subplot()
-    xy = result.com[:, :2]
     t = result.target
+    deep = bool(getattr(t, "is_3d", False))
+    fig = _figure(2 if deep else 1)
+    ax = fig.add_subplot(1, 2 if deep else 1, 1)
+    xy = result.com[:, :2]
+    where = result.target_xyz if result.target_xyz is not None else None
+    if where is not None and not np.all(np.isfinite(where)):
+        where = None
     if isinstance(t, Path):
         ax.plot(t.points[:, 0], t.points[:, 1], color="0.5", lw=3, label="path")
-    elif isinstance(t, Point):
-        where = t.at(result.times)
-        if t.vx or t.vy:
+    elif where is not None:
+        if np.ptp(where[:, 0]) > 1e-9 or np.ptp(where[:, 1]) > 1e-9:
             ax.plot(where[:, 0], where[:, 1], color="salmon", lw=2, label="target")
         ax.plot(where[-1, 0], where[-1, 1], "o", color="red", ms=9, label="target (end)")
+    elif isinstance(t, Point):
+        w = t.at(result.times)
+        ax.plot(w[-1, 0], w[-1, 1], "o", color="red", ms=9, label="target (end)")
     ax.plot(xy[:, 0], xy[:, 1], color="blue", lw=2, label="centre of mass")
     ax.plot(xy[0, 0], xy[0, 1], "s", color="black", ms=8, label="start")
     ax.set_aspect("equal", adjustable="datalim")  # a metre is as long across as up
@@ -61,6 +68,19 @@ def track_plot(result, path: str, title: str | None = None) -> None:
     ax.grid(alpha=0.3)
     ax.legend(loc="best")
     ax.set_title(title or f"{result.stroke}: {result.seconds:g} s seen from above")
+    if deep:
+        ax2 = fig.add_subplot(1, 2, 2)
+        if where is not None:
+            ax2.plot(where[:, 0], where[:, 2], color="salmon", lw=2, label="target")
+        ax2.plot(result.com[:, 0], result.com[:, 2] - result.water_level, color="blue", lw=2,
+                 label="centre of mass")
+        ax2.axhline(0.0, color="c", lw=1, label="water surface")
+        ax2.set_xlabel("x [m]")
+        ax2.set_ylabel("z [m]")
+        ax2.grid(alpha=0.3)
+        ax2.legend(loc="best")
+        ax2.set_title("seen from the side")
+        fig.tight_layout()
     _save(fig, path)
 
 

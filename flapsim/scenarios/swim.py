@@ -1,0 +1,251 @@
+"""Swimming scenarios (the swimming paper's tasks, sec. 5): ``flapsim eval --scenario
+swim-...``.
+
+Every runner swims with ``options.layers`` (basic, cycle = + per-cycle, all = +
+continuous; the paper's Fig. 15 comparison is the same scenario at each) and reports,
+after the first two cycles (the start from rest):
+
+* ``distance_to_target_mean_m`` / ``_max_m``: from the target (3D when the target has
+  a depth); for a path (figure of eight), from the path;
+* ``heading_error_mean_deg``: between the body line (pelvis to head) and the direction
+  the target asks for;
+* ``distance_swum_m``: along the centre of mass's track;
+* ``time_to_reach_s``: first within the target's radius (path: when its end came
+  within the look-ahead), None if never.
+
+``options.plots_dir``: a PNG of the swimmer's and the target's paths (top view; side
+view for targets below the surface). ``options.video_dir``: an mp4. ``options.quick``:
+a few seconds only (tests, smoke runs). Swimming is deterministic: ``options.seed``
+changes nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import numpy as np
+
+from flapsim.scenarios import EvalOptions, Scenario, register
+
+TRAJECTORY_FILE = Path(__file__).resolve().parents[1] / "swim" / "trajectories" / "zigzag.csv"
+#: a cross current's speed in the paper's Fig. 15 task here [m/s]
+CROSS_CURRENT = 0.3
+#: the bound the all-layers mean distance must stay within in the cross current [m]
+#: (measured 1.65 m; basic + per-cycle 1.82 m, basic alone 5.05 m)
+CROSS_CURRENT_BOUND = 2.5
+
+
+def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "", **kw):
+    """One swim with the options' layers, its plot and video; (result, files)."""
+    from flapsim.swim.simulate import swim
+
+    files: list[str] = []
+    stem = sc.name + (f"-{tag}" if tag else "") + f"-{opt.layers}"
+    with contextlib.ExitStack() as stack:
+        on_frame, fps = None, 0.0
+        if opt.video_dir:
+            import imageio.v2 as imageio
+
+            from flapsim.io import atomic_path
+
+            out = Path(opt.video_dir) / f"{stem}.mp4"
+            tmp = stack.enter_context(atomic_path(out, suffix=".mp4"))
+            writer = stack.enter_context(imageio.get_writer(tmp, fps=opt.fps, codec="libx264",
+                                                            quality=7))
+            on_frame, fps = writer.append_data, opt.fps
+            files.append(str(out))
+        r = swim(sc.params["stroke"], seconds, target=target, layers=opt.layers, video_fps=fps,
+                 video_size=(opt.size[1], opt.size[0]), on_frame=on_frame, **kw)
+    if opt.plots_dir:
+        from flapsim.swim.plots import track_plot
+
+        out = Path(opt.plots_dir) / f"{stem}.png"
+        track_plot(r, str(out), title=f"{stem}: {r.stroke}, layers {opt.layers}")
+        files.append(str(out))
+    return r, files
+
+
+def _metrics(r) -> dict:
+    """The common metrics (see the module docstring) from a SwimResult."""
+    s = r.summary()
+    m = {k: s.get(k) for k in ("distance_to_target_mean_m", "distance_to_target_max_m",
+                               "heading_error_mean_deg", "distance_swum_m", "time_to_reach_s")}
+    if "path_error_mean_m" in s:  # a path: the distance from it
+        m.update(distance_to_target_mean_m=s["path_error_mean_m"],
+                 distance_to_target_max_m=s["path_error_max_m"],
+                 time_to_reach_s=s["path_completed_s"],
+                 path_completed_fraction=s["path_completed_fraction"])
+    m.update(track_speed_m_s=s["track_speed_m_s"], lateral_drift_m=s["lateral_drift_m"],
+             simulated_s=s["seconds"], muscle_power_mean_w=s["muscle_power_mean_w"])
+    return m
+
+
+def _seconds(sc: Scenario, opt: EvalOptions) -> float:
+    return float(sc.params["quick_seconds"] if opt.quick else sc.params["seconds"])
+
+
+# ------------------------------------------------------------------ runners
+def figure_eight_runner(sc: Scenario, opt: EvalOptions) -> dict:
+    from flapsim.swim.targets import figure_eight
+
+    r, files = _swim(sc, opt, figure_eight(sc.params["radius_m"]), _seconds(sc, opt))
+    m = _metrics(r)
+    done = m["time_to_reach_s"] is not None
+    if opt.quick:
+        return {"status": "completed", "ok": True, "reason": "quick run: not the whole figure",
+                "metrics": m, "files": files}
+    return {"status": "completed" if done else "lost", "ok": done,
+            "reason": "" if done else
+            f"figure not completed ({100 * m['path_completed_fraction']:.0f}% done)",
+            "metrics": m, "files": files}
+
+
+def chase_runner(sc: Scenario, opt: EvalOptions) -> dict:
+    """A (moving) point, optionally across a current: the mean distance within
+    ``params['bound_m']``."""
+    from flapsim.swim.targets import Point
+
+    x, y, vx, vy = sc.params["target"]
+    cur = tuple(sc.params.get("current", (0.0, 0.0, 0.0)))
+    r, files = _swim(sc, opt, Point(x, y, vx=vx, vy=vy), _seconds(sc, opt), current=cur)
+    m = _metrics(r)
+    bound = float(sc.params["bound_m"])
+    if opt.quick:
+        return {"status": "completed", "ok": True, "reason": "quick run",
+                "metrics": {**m, "bound_m": bound}, "files": files}
+    ok = m["distance_to_target_mean_m"] is not None and m["distance_to_target_mean_m"] <= bound
+    reason = "" if ok else (f"mean distance {m['distance_to_target_mean_m']:.2f} m > {bound:g} m"
+                            + (f" (carried {m['lateral_drift_m']:+.1f} m across the current)"
+                               if any(cur) else ""))
+    return {"status": "completed" if ok else "lost", "ok": ok, "reason": reason,
+            "metrics": {**m, "bound_m": bound}, "files": files}
+
+
+def trajectory_runner(sc: Scenario, opt: EvalOptions) -> dict:
+    from flapsim.swim.targets import load_trajectory
+
+    traj = load_trajectory(str(TRAJECTORY_FILE))
+    r, files = _swim(sc, opt, traj, _seconds(sc, opt))
+    m = _metrics(r)
+    bound = float(sc.params["bound_m"])
+    ok = opt.quick or m["distance_to_target_mean_m"] <= bound
+    return {"status": "completed" if ok else "lost", "ok": ok,
+            "reason": "" if ok else f"mean distance {m['distance_to_target_mean_m']:.2f} m > {bound:g} m",
+            "metrics": {**m, "bound_m": bound, "trajectory_file": str(TRAJECTORY_FILE)},
+            "files": files}
+
+
+def dive_runner(sc: Scenario, opt: EvalOptions) -> dict:
+    """Waypoints: one below the surface, then one on it."""
+    from flapsim.swim.model import SwimmerParams
+    from flapsim.swim.targets import Waypoints
+
+    wp = Waypoints(np.asarray(sc.params["waypoints"], dtype=float), sc.params["radius_m"])
+    params = SwimmerParams(lung_volume_l=sc.params.get("lungs_l", 3.0))
+    r, files = _swim(sc, opt, wp, _seconds(sc, opt), params=params)
+    m = _metrics(r)
+    depth = float((r.com[:, 2] - r.water_level).min())
+    head = r.head[:, 2] - r.water_level
+    reached = wp.reached
+    surfaced = None
+    if reached[0] is not None:
+        after = np.flatnonzero((r.times > reached[0]) & (head > 0.0))
+        surfaced = float(r.times[after[0]]) if len(after) else None
+    m.update(deepest_com_m=depth, below_reached_s=reached[0],
+             surface_point_reached_s=reached[-1] if len(reached) > 1 else None,
+             head_resurfaced_s=surfaced, target_depth_m=float(wp.points[0, 2]))
+    ok = reached[0] is not None and surfaced is not None
+    if opt.quick:
+        return {"status": "completed", "ok": True, "reason": "quick run", "metrics": m,
+                "files": files}
+    reason = "" if ok else (f"the point {abs(wp.points[0, 2]):g} m down was not reached "
+                            f"(deepest centre of mass {depth:+.2f} m)" if reached[0] is None
+                            else "reached the point below but did not surface again")
+    return {"status": "completed" if ok else "lost", "ok": ok, "reason": reason, "metrics": m,
+            "files": files}
+
+
+def density_runner(sc: Scenario, opt: EvalOptions) -> dict:
+    """The paper's Fig. 16: the moving-target chase in several fluid densities (one
+    process: ``flapsim eval`` already runs scenarios in parallel)."""
+    from flapsim.errors import FlapsimError
+    from flapsim.swim.model import SwimmerParams
+    from flapsim.swim.targets import Point
+
+    densities = sc.params["quick_densities"] if opt.quick else sc.params["densities"]
+    x, y, vx, vy = sc.params["target"]
+    rows, files = [], []
+    for rho in densities:
+        try:
+            r, f = _swim(sc, opt, Point(x, y, vx=vx, vy=vy), _seconds(sc, opt), tag=f"{rho:g}",
+                         params=SwimmerParams(water_density=float(rho)))
+        except FlapsimError as exc:
+            rows.append({"density": rho, "error": str(exc)})
+            continue
+        files += f
+        m = _metrics(r)
+        s = r.summary()
+        rows.append({"density": rho, **m, "com_height_mean_m": s["com_height_mean_m"]})
+    good = [row for row in rows if "error" not in row]
+    metrics = {"rows": rows}
+    if good:
+        metrics.update(
+            distance_to_target_mean_m=float(np.mean([g["distance_to_target_mean_m"] for g in good])),
+            distance_to_target_max_m=float(max(g["distance_to_target_max_m"] for g in good)),
+            heading_error_mean_deg=float(np.mean([g["heading_error_mean_deg"] for g in good])),
+            distance_swum_m=float(sum(g["distance_swum_m"] for g in good)),
+            time_to_reach_s=None)
+    ok = len(good) == len(rows)
+    return {"status": "completed" if ok else "failed", "ok": ok,
+            "reason": "" if ok else "; ".join(f"{r_['density']:g}: {r_['error']}" for r_ in rows
+                                             if "error" in r_),
+            "metrics": metrics, "files": files}
+
+
+# ------------------------------------------------------------------ the scenarios
+for _stroke, _secs in (("crawl", 90.0), ("breaststroke", 115.0)):
+    register(Scenario(
+        name=f"swim-figure8-{_stroke}", family="swim",
+        summary=f"{_stroke} follows a figure of eight of 5 m loops (10 m lobes, 63 m; Fig. 14)",
+        runner=figure_eight_runner,
+        params={"stroke": _stroke, "radius_m": 5.0, "seconds": _secs, "quick_seconds": 6.0}))
+
+register(Scenario(
+    name="swim-cross-current", family="swim",
+    summary=f"crawl chases a target moving +x at 0.8 m/s across a {CROSS_CURRENT:g} m/s current "
+            "(Fig. 15)",
+    runner=chase_runner,
+    params={"stroke": "crawl", "target": (3.0, 0.0, 0.8, 0.0),
+            "current": (0.0, CROSS_CURRENT, 0.0), "bound_m": CROSS_CURRENT_BOUND,
+            "seconds": 40.0, "quick_seconds": 6.0}))
+
+register(Scenario(
+    name="swim-moving-target", family="swim",
+    summary="crawl chases a target from 2 m ahead, 3 m left, moving +x at 0.6 m/s",
+    runner=chase_runner,
+    params={"stroke": "crawl", "target": (2.0, 3.0, 0.6, 0.0), "bound_m": 3.0,
+            "seconds": 30.0, "quick_seconds": 6.0}))
+
+register(Scenario(
+    name="swim-density", family="swim",
+    summary="the moving-target chase in water of 850..2000 kg/m^3 (Fig. 16)",
+    runner=density_runner,
+    params={"stroke": "crawl", "target": (2.0, 3.0, 0.6, 0.0),
+            "densities": (850.0, 1000.0, 1025.0, 1300.0, 2000.0), "quick_densities": (1000.0,),
+            "seconds": 30.0, "quick_seconds": 4.0}))
+
+register(Scenario(
+    name="swim-dive", family="swim",
+    summary="breaststroke to a point 2 m below the surface 8 m ahead, then up to the surface",
+    runner=dive_runner,
+    params={"stroke": "breaststroke", "waypoints": ((8.0, 0.0, -2.0), (16.0, 0.0, 0.0)),
+            "radius_m": 0.75, "seconds": 60.0, "quick_seconds": 4.0}))
+
+register(Scenario(
+    name="swim-trajectory", family="swim",
+    summary="crawl chases a target moving along a timed trajectory file (45 deg zigzag, 60 s)",
+    runner=trajectory_runner,
+    # bound: about one turning diameter of the crawl (~10 m across), half of it
+    params={"stroke": "crawl", "bound_m": 5.0, "seconds": 60.0, "quick_seconds": 6.0}))
+
