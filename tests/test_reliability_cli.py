@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from flapsim import cli
@@ -49,6 +50,9 @@ def one_line_error(capsys, rc, fragment):
     (["animate", "--fps", "0"], "must be 1..240"),
     (["animate", "--seconds", "1e6"], "must be > 0 and <= 3600"),
     (["creature", "--seconds", "-1"], "must be > 0"),
+    (["fly", "--fps", "0"], "must be 1..240 frames/s"),
+    (["fly", "--video", "f.avi"], "must end in .mp4 or .gif"),
+    (["fly", "--wingbeats", "1000", "--json", "nope/f.json"], "folder nope does not exist"),
     # outputs of the wrong kind
     (["swim", "--video", "a.avi"], "must end in .mp4"),
     (["animate", "--video", "a.avi"], "must end in .mp4 or .gif"),
@@ -202,6 +206,7 @@ def test_a_signal_while_rendering_leaves_no_file(sig, status, tmp_path):
     assert proc.returncode == status, err
     assert list(tmp_path.iterdir()) == []  # neither the video, a hidden partial, nor the JSON
     assert err.strip().splitlines()[-1].startswith("flapsim modes: ")
+    assert "rendering x.mp4" in err  # the progress bar
 
 
 def test_animate_refuses_more_frames_than_it_can_hold(capsys):
@@ -253,3 +258,45 @@ def test_list_names_everything_a_command_accepts(tmp_path, capsys):
     assert cli.main(["list", "gaits"]) == 0
     out = capsys.readouterr().out
     assert "trot" in out and "strokes:" not in out
+
+
+def test_a_bad_stroke_file_is_one_line_before_swimming(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_bytes(b"\x00\x01binary")
+    one_line_error(capsys, cli.main(["swim", "--stroke", str(f)]), "a binary file")
+    f.write_text('name = "nothing"\n')
+    one_line_error(capsys, cli.main(["swim", "--stroke", str(f)]), "no keys")
+
+
+def test_sweep_and_swim_accept_the_same_values():
+    import argparse
+
+    from flapsim.errors import InputError
+    from flapsim.swim.sweep import PARAMETERS, sweep
+    from flapsim.validate import RANGES, quantity
+
+    for name, (_, unit, (lo, hi)) in PARAMETERS.items():
+        assert (lo, hi, unit) == (RANGES[name].lo, RANGES[name].hi, RANGES[name].unit)
+        if name != "current":  # swim takes --current as a vector of the same range
+            assert quantity(name)(str(hi)) == hi
+            with pytest.raises(argparse.ArgumentTypeError):
+                quantity(name)(str(hi * 1.01 + 0.01))
+        with pytest.raises(InputError, match="within"):
+            sweep("crawl", name, [hi * 1.01 + 0.01])
+
+
+def test_uniform_stiffness_leaves_a_planar_root_alone():
+    # slide x, slide z, hinge y on a body attached to the world float the root; the
+    # elbow is a real joint: --stiffness springs it and nothing else
+    from flapsim.modal.analysis import analyze, fix_root
+    from flapsim.sim.loading import load_model
+
+    m = load_model("""<mujoco><worldbody><body name="root">
+      <joint name="x" type="slide" axis="1 0 0"/><joint name="z" type="slide" axis="0 0 1"/>
+      <joint name="pitch" type="hinge" axis="0 1 0"/><geom size=".1" mass="1"/>
+      <body pos=".3 0 0"><joint name="elbow" axis="0 1 0"/><geom size=".05" mass=".2"/></body>
+      </body></worldbody></mujoco>""", is_xml=True)
+    a = analyze(m, stiffness=5.0)
+    assert np.allclose(np.diag(a.stiffness), [0, 0, 0, 5.0])
+    assert a.n_rigid == 3
+    assert [c.names[0] for c in fix_root(m)] == ["x", "z", "pitch"]
