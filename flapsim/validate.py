@@ -320,14 +320,21 @@ def gl_problem(value: str | None = None,
     if v not in _GL_VALID:
         return (f"MUJOCO_GL={v!r} is not a MuJoCo GL backend; use egl (offscreen), osmesa "
                 "(software) or glfw (a display)")
+    import importlib.util
+    import platform
+
     lib = {"egl": "EGL", "osmesa": "OSMesa", "glx": "GL"}.get(v)
     if lib and not find(lib):
         return f"MUJOCO_GL={v} but its library lib{lib} is not installed; try MUJOCO_GL=egl"
-    if v == "osmesa":
-        import importlib.util
-
+    if v in ("egl", "osmesa"):
         if importlib.util.find_spec("OpenGL") is None:
-            return "MUJOCO_GL=osmesa needs PyOpenGL (pip install PyOpenGL); try MUJOCO_GL=egl"
+            return f"MUJOCO_GL={v} needs PyOpenGL (pip install PyOpenGL)"
+        plat = os.environ.get("PYOPENGL_PLATFORM", "").lower()
+        if plat and plat != v:
+            return f"MUJOCO_GL={v} but PYOPENGL_PLATFORM={plat}: unset it or make them agree"
+    elif platform.system() == "Linux" and v != "glx" and importlib.util.find_spec("glfw") is None:
+        return (f"MUJOCO_GL={v or '(unset)'} means GLFW, whose Python package is not installed; "
+                "use MUJOCO_GL=egl for offscreen rendering")
     return None
 
 
