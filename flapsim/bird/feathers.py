@@ -13,10 +13,11 @@ wing's planform area instead of counting overlaps twice.
 Everything is generated for the LEFT side (wing along +y, dorsal normal +z) in the
 frame of the body the feather hangs on; :func:`mirror_triangles` gives the right side.
 
-What is not modelled (the paper has it): feather bending. The paper simulates each
-feather as a thin shell with 4 deformation modes (density 165 kg/m^3, flexural
-stiffness falling from 0.018 to 0.0019 N m); here feathers are rigid plates and only the
-primaries twist, on a one-sided spring hinge (see :mod:`flapsim.bird.model`).
+By default (the bundled ``bird_mjcf/dove.xml``) these meshes are rigid plates and only the
+primaries twist, on a one-sided spring hinge (see :mod:`flapsim.bird.model`). The paper's
+deformable feathers (thin shells with 4 deformation modes) are an option:
+``Dove.load(feathers="modal")`` (:mod:`flapsim.bird.feather_modes`,
+:mod:`flapsim.bird.modal_feathers`).
 """
 
 from __future__ import annotations
