@@ -42,6 +42,9 @@ from flapsim.errors import InputError
 from flapsim.swim.layers import BasicStrokeLayer
 
 RULES = ("palm", "reach")
+#: while the per-cycle layer's yaw weight is w, at most 1 - TURN_SLOWDOWN w of the force
+#: along d is wanted (negative: less force, the palms slice)
+TURN_SLOWDOWN = 1.5
 
 
 @dataclass(frozen=True)
@@ -101,9 +104,12 @@ class HandRules:
                                "wrist": where[need[1]], "elbow": where[need[2]],
                                "off": np.zeros(3)})
         self.t_last: float | None = None
-        #: how much force along d is wanted (1; prone strokes with a target: the cosine
-        #: of the angle between the body line and the target's direction)
+        #: how much force along d is wanted, -1..1 (1; prone strokes with a target: the
+        #: cosine of the angle between the body line and the target's direction, and at
+        #: most 1 - TURN_SLOWDOWN w, w the per-cycle layer's yaw weight this cycle)
         self.need = 1.0
+        #: the per-cycle layer (its yaw weights), if any: set by whoever stacks the layers
+        self.cycle = None
         self._vel = np.zeros(6)
         #: per update: mean c over the wet hands, and the offsets [rad] (pron, wrist,
         #: elbow) of each hand
@@ -126,9 +132,14 @@ class HandRules:
             line = data.xpos[self.head] - data.xpos[self.root]
             h = math.atan2(line[1], line[0])
             if self.target is not None:  # forward force is wanted as far as the target
-                # lies ahead: more on course, less while the aim is beside or behind
+                # lies ahead: more on course, less while the aim is beside or behind ...
                 aim = self.target.heading(com[:2], data.subtree_linvel[self.root][:2].copy(), t)
                 self.need = math.cos(aim - h)
+                cyc = self.cycle
+                if cyc is not None and cyc.weights:  # ... and less while the per-cycle
+                    # layer turns hard (a slower swimmer turns in a smaller circle)
+                    w = max(cyc.weights.get("yaw_left", 0.0), cyc.weights.get("yaw_right", 0.0))
+                    self.need = min(self.need, 1.0 - TURN_SLOWDOWN * w)
         elif self.target is None:
             return None
         else:

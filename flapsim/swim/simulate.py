@@ -340,6 +340,8 @@ def swim(
                         "off", st.name)
     hands = HandRules(layer, target, RULES if rules is None else tuple(rules)) \
         if (rules is None or len(rules)) else None
+    if hands is not None:
+        hands.cycle = cyc
     stack = LayerStack(layer, layers, cyc, fb, hands)
     layer.stack = stack
     aim: list[float] = []
