@@ -66,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="flapsim",
         description="Simulate birds, swimmers and modal creatures in MuJoCo.",
+        epilog="'flapsim COMMAND --help' describes a command; 'flapsim list' names what they "
+               "accept.\n\n" + EXIT_STATUS.replace("  2    bad", "  1    some runs of a batch "
+                                                      "failed (sweep, eval)\n  2    bad"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"flapsim {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")

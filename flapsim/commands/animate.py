@@ -45,7 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
                    help="write an .mp4 or .gif of the animation")
     add_output_arg(p, "--bvh", kinds=(".bvh",), help="write the animation as BVH (cm, z up)")
-    add_output_arg(p, "--sheet", kinds=(".png",), renders=True, metavar="PNG",
+    add_output_arg(p, "--sheet", kinds=(".png",), metavar="PNG",
                    help="write an offscreen contact sheet of one cycle (mode browser view)")
     p.add_argument("--browse", action="store_true",
                    help="open the interactive mode browser (sliders per mode; needs a display)")
