@@ -164,12 +164,13 @@ def twist_armature(fm: FeatherModes, axis: np.ndarray) -> float:
 
 
 def clamped_feather_xml(fm: FeatherModes, mp: ModalParams, timestep: float,
-                        gravity: bool = False) -> str:
-    """One feather clamped at its root to a fixed bone (named after ``fm.body``), its modes
-    as in the dove (:func:`modal_xml`): the unit model of the tests and the calibration."""
+                        gravity: bool = False, free_bone: bool = False) -> str:
+    """One feather clamped at its root to a bone (named after ``fm.body``; fixed, or on a free
+    joint), its modes as in the dove (:func:`modal_xml`): the unit model of the tests."""
+    joint = '<freejoint name="bone"/>' if free_bone else ""
     xml = (f'<mujoco><option timestep="{timestep:.10g}" integrator="implicitfast" '
            f'gravity="0 0 {-9.81 if gravity else 0.0}"/>'
-           f'<worldbody><body name="{fm.body}" pos="0 0 1">'
+           f'<worldbody><body name="{fm.body}" pos="0 0 1">{joint}'
            '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>')
     root = ET.fromstring(xml)
     _add_mode_bodies(root.find("worldbody/body"), fm, mp, timestep)

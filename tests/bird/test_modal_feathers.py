@@ -338,3 +338,80 @@ def test_shaft_beam_static_matches_closed_form():
     free = np.arange(3, beam.ndof)
     u = np.linalg.solve(beam.K[np.ix_(free, free)], f[free])
     assert u[3 * 16 - 3] == pytest.approx(euler_bernoulli_tip_deflection(1e-3, L, ei), rel=1e-3)
+
+
+def test_own_weight_sag_matches_the_beam(params):
+    """Gravity acts on the modes' point masses (the D'Alembert path of a bone accelerating at
+    g): a clamped secondary, flat and horizontal, sags under its own weight as the full beam
+    (all its elements, no modal truncation) does under the same distributed load."""
+    from flapsim.bird.feather_modes import _quadrature
+    from flapsim.bird.model import left_feathers
+
+    mp = ModalParams(damping_ratio=1.0)
+    fm = _feather(params, "l_s5", mp)
+    m = mujoco.MjModel.from_xml_string(clamped_feather_xml(fm, mp, params.timestep, gravity=True))
+    d = mujoco.MjData(m)
+    mujoco.mj_step(m, d, nstep=600)
+    prov = ModalFeathers(m, [fm], get_table("dickinson1999_profile"), 1.225)
+    v = prov.body_vertices(d.qpos[:fm.omega.size], 0)
+    tip = np.flatnonzero(fm.vert_station == fm.stations - 1)
+    sag = float(np.mean((v[tip] - fm.vertices[tip]) @ fm.normal))
+    # the beam: load rho g over the vane, integrated over the triangles
+    fe = next(f for f in left_feathers(params) if f.name == "l_s5")
+    beam = ShaftBeam(fm.length, fm.ei, fm.gj, 32)
+    pts, wts = _quadrature(fe.triangles)
+    rho = fe.mass / wts.sum()
+    f = np.zeros(beam.ndof)
+    for pt, wt in zip(pts, wts, strict=True):
+        f += -9.81 * rho * wt * beam.row((pt - fm.root) @ fm.shaft, (pt - fm.root) @ fm.chord)[0]
+    free = np.arange(3, beam.ndof)
+    u = np.zeros(beam.ndof)
+    u[free] = np.linalg.solve(beam.K[np.ix_(free, free)], f[free])
+    expected = beam.row(fm.length, 0.0)[0] @ u
+    assert sag < 0
+    assert sag == pytest.approx(expected, rel=0.05)
+
+
+def test_modes_couple_to_the_bone_by_their_participation(params):
+    """The bone's acceleration loads mode k by Gamma_k (translation along the normal) and
+    S_k x n (rotation): MuJoCo's mass matrix of a feather on a free bone has exactly these
+    off-diagonal terms (the D'Alembert load and, by symmetry, its reaction on the bone)."""
+    fm = _feather(params, "l_p6")
+    m = mujoco.MjModel.from_xml_string(clamped_feather_xml(fm, ModalParams(), params.timestep,
+                                                           free_bone=True))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    K = fm.omega.size
+    for k in range(K):
+        np.testing.assert_allclose(M[6 + k, 0:3], fm.gamma[k] * fm.normal, atol=1e-9 * fm.mass)
+        np.testing.assert_allclose(M[6 + k, 3:6], np.cross(fm.first_moment[k], fm.normal),
+                                   atol=1e-9 * fm.mass)
+        assert M[6 + k, 6 + k] == pytest.approx(fm.mu[k], rel=1e-6)
+
+
+def test_aerodynamic_load_bends_the_feather_its_way(params):
+    """A clamped, flat primary in a 6 m/s updraft: the air pushes it up and it bends up, and
+    settles where its modal stiffness balances the generalized aerodynamic force."""
+    from flapsim.fluid.flow import FlowField, Uniform
+
+    mp = ModalParams(damping_ratio=1.0)
+    fm = _feather(params, "l_p6", mp)
+    m = mujoco.MjModel.from_xml_string(clamped_feather_xml(fm, mp, params.timestep))
+    prov = ModalFeathers(m, [fm], get_table("dickinson1999_profile"), 1.225,
+                         FlowField([Uniform((0.0, 0.0, 6.0))]))
+    d = mujoco.MjData(m)
+    with prov.register(d):
+        mujoco.mj_step(m, d, nstep=600)
+        rep = prov.evaluate(d)
+        K = fm.omega.size
+        q = d.qpos[:K].copy()
+        # at rest: the kernel's generalized force equals the springs' pull
+        mujoco.mj_forward(m, d)
+        passive = d.qfrc_passive[:K].copy()
+    assert rep.force.sum(0) @ fm.normal > 0
+    v = prov.body_vertices(q, 0)
+    tip = np.flatnonzero(fm.vert_station == fm.stations - 1)
+    assert np.mean((v[tip] - fm.vertices[tip]) @ fm.normal) > 1e-4
+    np.testing.assert_allclose(passive, 0.0, atol=1e-3 * np.abs(m.jnt_stiffness[:K] * q).max())
