@@ -198,10 +198,10 @@ class _Input:
     may_be_name: bool
 
 
-def _declared(parser: argparse.ArgumentParser, attr: str) -> list:
-    if not hasattr(parser, attr):
-        setattr(parser, attr, [])
-    return getattr(parser, attr)
+def _declare(parser: argparse.ArgumentParser, key: str, spec: object) -> None:
+    """Add ``spec`` to the parser's default ``key`` (a tuple). Argument groups share their
+    parser's defaults, so a declaration made on a (mutually exclusive) group counts too."""
+    parser.set_defaults(**{key: tuple(parser.get_default(key) or ()) + (spec,)})
 
 
 def add_output_arg(parser: argparse.ArgumentParser, flag: str, *, kinds: Sequence[str] | None = None,
@@ -210,10 +210,8 @@ def add_output_arg(parser: argparse.ArgumentParser, flag: str, *, kinds: Sequenc
     :func:`check_outputs` before the command runs (``kinds``: allowed suffixes)."""
     kwargs.setdefault("metavar", "PATH")
     action = parser.add_argument(flag, **kwargs)
-    spec = _Output(action.dest, flag, tuple(k.lower() for k in kinds) if kinds else None,
-                   renders, stdout)
-    _declared(parser, "_flapsim_outputs").append(spec)
-    parser.set_defaults(_outputs=tuple(_declared(parser, "_flapsim_outputs")))
+    _declare(parser, "_outputs", _Output(action.dest, flag, tuple(k.lower() for k in kinds)
+                                         if kinds else None, renders, stdout))
     return action
 
 
@@ -222,9 +220,7 @@ def add_input_arg(parser: argparse.ArgumentParser, flag: str, *, may_be_name: bo
     """``parser.add_argument(flag, **kwargs)`` for an input file that must exist (unless
     ``may_be_name`` and it does not look like a path: ``--stroke crawl``)."""
     action = parser.add_argument(flag, **kwargs)
-    dest = action.dest
-    _declared(parser, "_flapsim_inputs").append(_Input(dest, flag, may_be_name))
-    parser.set_defaults(_inputs=tuple(_declared(parser, "_flapsim_inputs")))
+    _declare(parser, "_inputs", _Input(action.dest, flag, may_be_name))
     return action
 
 

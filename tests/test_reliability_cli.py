@@ -101,6 +101,12 @@ def test_an_output_never_replaces_an_input(tmp_path, capsys):
     path.write_text("x,y\n0,0\n10,0\n")
     one_line_error(capsys, cli.main(["swim", "--path", str(path), "--json", str(path)]),
                    "is the input of --path")
+    # declared in the parser and in a mutually exclusive group: both count
+    stroke = tmp_path / "s.toml"
+    stroke.write_text('[pose]\n"neck.flex" = 10\n')
+    one_line_error(capsys, cli.main(["swim", "--stroke", str(stroke), "--path", str(path),
+                                     "--out", str(tmp_path / "t.npz"), "--json", str(stroke)]),
+                   "is the input of --stroke")
 
 
 def test_json_dash_is_stdout_and_the_summary_goes_to_stderr(tmp_path, monkeypatch, capsys):
