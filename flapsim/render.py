@@ -55,12 +55,14 @@ def _heading_deg(xmat: np.ndarray) -> float:
 
 def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.PathLike,
                  fps: float = 30.0, camera: ChaseCamera | None = None, width: int = 640,
-                 height: int = 480, progress: bool = True) -> int:
+                 height: int = 480, progress: bool = True, before_frame=None) -> int:
     """Render ``qpos_frames`` (n, nq) to a video at ``path`` (.mp4, .gif ...); returns frames.
 
     Positions only: each frame runs ``mj_forward`` on a private ``MjData`` (no force
     providers are registered on it, so nothing is simulated here). Frames stream to the
     file (memory stays bounded); ``progress`` shows a bar (tqdm, on stderr).
+    ``before_frame(data, renderer)``, if given, runs after each frame's ``mj_forward``: e.g. to
+    deform meshes (:class:`flapsim.bird.modal_feathers.MeshDeformer`).
     """
     frames = np.asarray(qpos_frames, dtype=float)
     if frames.ndim != 2 or frames.shape[1] != model.nq:
@@ -115,6 +117,8 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
                         heading = heading + a * dh
                         cam.lookat[:] = look
                         cam.azimuth = heading + camera.azimuth_offset_deg
+                    if before_frame is not None:
+                        before_frame(d, renderer)
                     renderer.update_scene(d, cam)
                     writer.append_data(renderer.render())
                     n += 1

@@ -661,3 +661,23 @@ class MeshDeformer:
         for _, ids, _, _ in self.meshes:
             for mid in ids:
                 mujoco.mjr_uploadMesh(self.model, ctx, mid)
+
+
+def video_model(dove) -> tuple[mujoco.MjModel, object]:
+    """A rendering copy of a modal dove's model and the ``before_frame`` hook of
+    :func:`flapsim.render.render_video` that draws its feathers deformed; the copy's meshes
+    change per frame, the dove's own model is untouched."""
+    import copy
+
+    from flapsim.fluid.coefficients import get_table
+
+    view = copy.copy(dove.model)
+    modal = ModalFeathers(view, dove_feather_modes(dove.params, dove.modal),
+                          get_table("flat_plate"), 1.0)
+    deformer = MeshDeformer(view, modal)
+
+    def before_frame(data: mujoco.MjData, renderer: mujoco.Renderer) -> None:
+        deformer.apply(data)
+        deformer.upload(renderer)
+
+    return view, before_frame

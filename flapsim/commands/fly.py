@@ -123,8 +123,14 @@ def run(args: argparse.Namespace) -> dict:
 
         dt = float(dove.model.opt.timestep)
         stride = max(1, int(round(1.0 / (args.fps * dt))))
-        n = render_video(dove.model, flight.qpos[::stride], args.video, fps=1.0 / (stride * dt),
-                         camera=ChaseCamera("trunk"), width=width, height=height)
+        model, hook = dove.model, None
+        if dove.modal is not None:  # draw the feathers deformed
+            from flapsim.bird.modal_feathers import video_model
+
+            model, hook = video_model(dove)
+        n = render_video(model, flight.qpos[::stride], args.video, fps=1.0 / (stride * dt),
+                         camera=ChaseCamera("trunk"), width=width, height=height,
+                         before_frame=hook)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
     return result
