@@ -23,6 +23,10 @@ How a command uses it (in its ``add_arguments(parser)``)::
   declared with ``may_be_name=True``: checked only when it is not a known name.
 * ``--json`` is declared by the CLI for every command. A command written later (``eval``,
   ``view``) gets all of this by declaring its arguments with these helpers; nothing else.
+* The command module itself may set ``SEED_HELP`` (say "--seed changes nothing" where it
+  does not) and ``EXIT_STATUS`` (extra lines for its ``--help``), and a batch command's
+  ``run`` returns ``"exit_status": 1`` when some of its runs failed (the CLI exits with it
+  after writing the JSON); see :mod:`flapsim.cli`.
 
 ``MUJOCO_GL`` (see :func:`gl_problem`): an unknown value, or a backend whose library is
 missing, is noted when the CLI starts (rendering is then disabled so ``import mujoco``
@@ -139,7 +143,10 @@ def vector(name: str | Sequence[str], n: int) -> Callable[[str], tuple[float, ..
         out = []
         for part, nm in zip(parts, names, strict=True):
             r = RANGES[nm]
-            v = _float(part, f"{what} (not {text!r})")
+            try:
+                v = float(part)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
             if not r.contains(v):
                 raise argparse.ArgumentTypeError(f"{part} in {text!r} must be {r.describe()}")
             out.append(v)
