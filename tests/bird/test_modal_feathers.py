@@ -415,3 +415,14 @@ def test_aerodynamic_load_bends_the_feather_its_way(params):
     tip = np.flatnonzero(fm.vert_station == fm.stations - 1)
     assert np.mean((v[tip] - fm.vertices[tip]) @ fm.normal) > 1e-4
     np.testing.assert_allclose(passive, 0.0, atol=1e-3 * np.abs(m.jnt_stiffness[:K] * q).max())
+
+
+def test_fly_command_takes_feathers_modal(tmp_path, modal_dove):
+    import json
+
+    from flapsim.cli import main
+
+    out = tmp_path / "fly.json"
+    assert main(["fly", "--feathers", "modal", "--wingbeats", "1", "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert res["feathers"] == "modal" and res["model_hash"] != RIGID_HASH and res["finite"]
