@@ -69,10 +69,13 @@ def forest_path() -> FlightPath:
 
 
 def perturbed_copy(path: FlightPath, offset_m: np.ndarray, jitter_m: float,
-                   rng: np.random.Generator) -> FlightPath:
+                   rng: np.random.Generator, horizontal: bool = False) -> FlightPath:
     """A follower's path (the paper's flocks): the leader's points moved by ``offset_m`` and
-    each by a random displacement of at most ``jitter_m`` in a random direction."""
+    each by a random displacement of at most ``jitter_m`` in a random direction
+    (``horizontal``: in a random horizontal direction)."""
     pts = path.points + np.asarray(offset_m, float)
     d = rng.normal(size=pts.shape)
+    if horizontal:
+        d[:, 2] = 0.0
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     return FlightPath(pts + d * rng.uniform(0.0, jitter_m, size=(len(pts), 1)))
