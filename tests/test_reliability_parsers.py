@@ -95,6 +95,8 @@ def test_stroke_files_of_any_bytes(tmp_path, data):
     ('name = "caf\u00e9"\n'.encode("latin-1"), "not UTF-8"),
     (b'[keys.neck]\nbend = [[0.0, 1], [1.5, 3]]\n', "phase 1.5"),
     (b"pose = 3\n", "[pose] must be a table"),
+    (b'[keys.neck]\nbend = [[0.0, 1e300]]\n', "a key of 1e+300 deg"),
+    (b'[pose]\n"neck.bend" = 7000\n', "within +-1080"),
 ])
 def test_bad_stroke_files_name_the_problem(tmp_path, data, fragment):
     from flapsim.swim.strokes import load_stroke

@@ -65,6 +65,8 @@ from flapsim.swim.model import JointInfo
 
 STROKE_DIR = Path(__file__).resolve().parent / "strokes"
 STROKES = ("breaststroke", "crawl", "treading")
+#: the largest key angle a stroke file may give, deg (a windmilling arm needs one turn)
+MAX_KEY_DEG = 1080.0
 #: the per-cycle layer's sequence names -> (rotation axis, sign of the change it makes
 #: in the angle of :func:`flapsim.swim.cycle.attitude`: yaw + = left, pitch + = up,
 #: roll + = left side up)
@@ -195,6 +197,10 @@ def _pairs(where: str, raw: object) -> tuple[np.ndarray, np.ndarray]:
         raise DataFileError(f"{where}: keys must be [[phase, degrees], ...]") from None
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1 or not np.all(np.isfinite(arr)):
         raise DataFileError(f"{where}: keys must be a non-empty list of [phase, degrees] pairs")
+    big = arr[np.abs(arr[:, 1]) > MAX_KEY_DEG, 1]
+    if big.size:
+        raise DataFileError(f"{where}: a key of {big[0]:g} deg: angles are degrees within "
+                            f"+-{MAX_KEY_DEG:g}")
     outside = arr[(arr[:, 0] < 0.0) | (arr[:, 0] > 1.0), 0]
     if outside.size:
         raise DataFileError(f"{where}: a key at phase {outside[0]:g}: phases are fractions of "
@@ -282,8 +288,8 @@ def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
             raise DataFileError(f"{path}: [pose] names unknown dof {dof!r}; valid: "
                                 f"{', '.join(sorted(valid))}")
         if isinstance(value, bool) or not isinstance(value, int | float) \
-                or not np.isfinite(value):
-            raise DataFileError(f"{path}: [pose] {dof} must be a finite angle in degrees, "
+                or not np.isfinite(value) or abs(value) > MAX_KEY_DEG:
+            raise DataFileError(f"{path}: [pose] {dof} must be an angle in degrees within +-{MAX_KEY_DEG:g}, "
                                 f"got {value!r}")
         keys[dof] = (np.zeros(1), np.array([float(value)]))
     mirror = raw.get("mirror", {})
