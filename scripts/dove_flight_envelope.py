@@ -1,0 +1,54 @@
+"""What paths the learned dove can follow: level circles of shrinking radius and straight
+climbs of growing angle, each flown once with the bundled database (or --db), judged as
+``flapsim eval`` judges (lost = farther than 3 m from the path).
+
+    PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from flapsim.bird.path import FlightPath
+from flapsim.bird.paths import START_HEIGHT, inclined_circle
+from flapsim.bird.tasks import Task, fly_task
+from flapsim.io import write_json
+
+
+def climb(angle_deg: float, length_m: float = 80.0) -> FlightPath:
+    a = np.radians(angle_deg)
+    return FlightPath(np.array([[0.0, 0.0, START_HEIGHT],
+                                [length_m * np.cos(a), 0.0, START_HEIGHT + length_m * np.sin(a)]]))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--db", default=None)
+    ap.add_argument("--radii", default="8,10,12,15,20")
+    ap.add_argument("--climbs", default="1,2,3,5")
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    rows = []
+    cases = [("circle", float(r)) for r in a.radii.split(",")]
+    cases += [("climb", float(c)) for c in a.climbs.split(",")]
+    for kind, x in cases:
+        path = inclined_circle(radius_m=x, turns=1.0) if kind == "circle" else climb(x)
+        r = fly_task(Task(path), a.db)
+        m = r.metrics
+        bank = np.degrees(np.arctan(49.0 / (9.81 * x))) if kind == "circle" else 0.0
+        row = {"kind": kind, "value": x, "bank_needed_deg": bank, "status": r.status,
+               "reason": r.reason, "max_path_distance": m.get("max_path_distance"),
+               "Ef_per_wingbeat": m.get("Ef_per_wingbeat"), "progress_m": m["progress_m"],
+               "length_m": path.length}
+        rows.append(row)
+        what = f"radius {x:g} m (bank {bank:.0f} deg)" if kind == "circle" else f"climb {x:g} deg"
+        print(f"{what:<28} {r.status:<10} max {row['max_path_distance']:.2f} m, "
+              f"{row['progress_m']:.0f}/{path.length:.0f} m  {r.reason}", flush=True)
+    if a.json:
+        write_json(a.json, {"envelope": rows})
+
+
+if __name__ == "__main__":
+    main()
