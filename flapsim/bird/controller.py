@@ -564,10 +564,10 @@ def cruise_metrics(f: ControlledFlight, target: CruiseTarget) -> dict:
 
 # -- loading --------------------------------------------------------------------------------
 
-#: The bundled controller database, made by ``flapsim train --samples 5000 --pre-pitch-deg 10
-#: --pre-roll-deg 10 --seed 1 --out dove_controller.db`` (phase 1; 236-277 s for 10,000 on two
-#: cores, so about two minutes). Regenerate it after any change to the dove model: a database
-#: of another model is refused by its model hash.
+#: The bundled controller database, made by ``flapsim train --samples 10000 --pre-pitch-deg 10
+#: --pre-roll-deg 10 --seed 1 --out dove_controller.db`` (phase 1; 236-277 s on two idle
+#: cores; 4.6 MB: float64). Regenerate it after any change to the dove model: a database of
+#: another model is refused by its model hash.
 BUNDLED_DB = "dove_controller.db"
 
 

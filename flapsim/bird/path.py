@@ -31,6 +31,11 @@ from flapsim.bird import cycle
 from flapsim.bird.controller import GRAVITY, Trim, target_state
 from flapsim.errors import DataFileError, InputError
 
+MAX_COORD_M = 1e5
+"""Largest path coordinate, m (100 km: far beyond any flight; bounds the spline's samples)."""
+MAX_LENGTH_M = 1e6
+"""Longest path, m (its 5 cm search samples then take ~0.5 GB at most)."""
+
 
 @dataclass(frozen=True)
 class FlightPath:
@@ -47,7 +52,12 @@ class FlightPath:
             raise InputError(f"a path needs at least 2 points, got {len(p)}")
         if not np.all(np.isfinite(p)):
             raise InputError("path points must be finite numbers (found NaN or inf)")
+        if np.max(np.abs(p)) > MAX_COORD_M:
+            raise InputError(f"path points must be within +-{MAX_COORD_M:g} m of the origin (the "
+                             f"largest is {np.max(np.abs(p)):.3g} m): give metres")
         seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        if seg.sum() > MAX_LENGTH_M:
+            raise InputError(f"a path may be at most {MAX_LENGTH_M:g} m long, got {seg.sum():.3g} m")
         if np.any(seg < 1e-6):
             k = int(np.flatnonzero(seg < 1e-6)[0])
             raise InputError(f"path points {k + 1} and {k + 2} are the same point: remove one")

@@ -248,7 +248,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         out = cache / f"phase1_{n}.db"
         print(f"database of {n} samples: {out}")
         train(config, out, n, SampleWorker, workers=args.workers or (os.cpu_count() or 1),
-              backend=args.backend, address=args.address)
+              backend=args.backend, address=args.address, kind="dove-phase1")
         dbs[n] = out
     runs, labels = [], []
     for n in sizes:
