@@ -453,9 +453,11 @@ class Flight:
 
 def fly(dove: Dove, wingbeats: int, cfg: FlightConfig | None = None, p: np.ndarray | None = None,
         use_rollout: bool = True, ref: ReferenceWingbeat | None = None,
-        progress: bool = False) -> Flight:
+        progress: bool = False, keep_qpos: bool = True) -> Flight:
     """The base controller: repeat wingbeat ``p`` (default: P0 with the tail bias) from the
-    standard cruise state for ``wingbeats`` cycles."""
+    standard cruise state for ``wingbeats`` cycles. ``keep_qpos=False`` keeps the full
+    positions only at wingbeat ends (a long flight without a video then needs ~45 kB per
+    wingbeat instead of ~0.2-0.6 MB)."""
     import time as _time
 
     if wingbeats < 1:
@@ -477,7 +479,10 @@ def fly(dove: Dove, wingbeats: int, cfg: FlightConfig | None = None, p: np.ndarr
             it = tqdm(it, desc="wingbeats", unit="wb")
         t0 = _time.perf_counter()
         for _ in it:
-            recs.append(fl.run_cycle(p))
+            rec = fl.run_cycle(p)
+            if not keep_qpos and rec.qpos is not None:
+                rec.qpos = rec.qpos[-1:].copy()
+            recs.append(rec)
             states.append(fl.reduced_state())
         wall = _time.perf_counter() - t0
         v1 = fl.com_velocity()

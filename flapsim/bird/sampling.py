@@ -255,8 +255,19 @@ class SamplingConfig(StoredConfig):
     beyond the examples' steering/elevation extremes (see :mod:`flapsim.bird.discovery`)."""
     extrapolate_scale: float = 1.6
     """How far beyond the extremes, as a multiple of the examples' largest |alpha|/|beta|."""
+    feathers: str = "rigid"
+    """``rigid`` or ``modal`` (bending) feathers: the dove the samples are flown with (a
+    database is bound to its model)."""
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        if d["feathers"] == "rigid":
+            del d["feathers"]  # rigid databases keep the configuration they always had
+        return d
 
     def validate(self) -> None:
+        if self.feathers not in ("rigid", "modal"):
+            raise InputError(f"feathers must be rigid or modal, got {self.feathers!r}")
         if not (0 < self.sigma <= 10):
             raise InputError(f"--sigma must be in (0, 10], got {self.sigma}")
         if not (1 <= self.bins <= 10):
@@ -335,7 +346,7 @@ class SampleWorker:
         self.ref = reference_wingbeat()
         self.examples = load_examples(config, self.ref)
         self.ellipses = Ellipses.fit(self.examples, config.bins)
-        self.dove = Dove.load()
+        self.dove = Dove.load(feathers=config.feathers)
         self.flight = DoveFlight(self.dove, self.ref, config.table)
         self.lo, self.hi = cycle.model_dof_ranges(self.flight)
         self.P0 = with_tail_bias(p0(), config.tail_bias_deg)

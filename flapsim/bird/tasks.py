@@ -112,6 +112,8 @@ class Task:
     forest: Forest | None = None
     tube_m: float = 3.0
     """Lost when farther than this from the path at a wingbeat's end, m."""
+    feathers: str = "rigid"
+    """``rigid`` or ``modal`` feathers (the database must be of the same dove)."""
     max_wingbeats: int | None = None
     """Default: enough for 1.5x the path's length at ``speed``."""
     stop_when_lost_m: float = 15.0
@@ -158,7 +160,7 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
 
-    fl = DoveFlight(Dove.load(), wind=tuple(task.wind), flow=tuple(task.flow),
+    fl = DoveFlight(Dove.load(feathers=task.feathers), wind=tuple(task.wind), flow=tuple(task.flow),
                     plucked=tuple(task.plucked))
     try:
         ctl = load_controller(fl, db, method=method, k=k)

@@ -107,9 +107,9 @@ def run(args: argparse.Namespace) -> dict:
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
-    if args.feathers != "rigid":
-        raise InputError("--feathers modal is not available in eval yet (the modal feathers are not "
-                         "in the learned controller's database); use --feathers rigid")
+    if args.feathers != "rigid" and not args.db:
+        raise InputError("--feathers modal needs --db: a database trained with modal feathers "
+                         "(flapsim train --feathers modal ...); the bundled one is the rigid dove's")
     if args.table1:
         return _table1(args, opts)
     runs = [(n, opts) for n in _names(args)]

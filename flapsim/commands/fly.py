@@ -91,7 +91,8 @@ def run(args: argparse.Namespace) -> dict:
     if args.controller == "learned" or args.db or args.roll_deg:
         return _run_controlled(args, cfg, width, height)
     dove = Dove.load(feathers=args.feathers)
-    flight = fly(dove, args.wingbeats, cfg, use_rollout=not args.python_loop, progress=True)
+    flight = fly(dove, args.wingbeats, cfg, use_rollout=not args.python_loop, progress=True,
+                 keep_qpos=bool(args.video))
     metrics = flight_metrics(flight)
     result = {
         "wingbeats": args.wingbeats,

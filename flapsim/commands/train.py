@@ -53,6 +53,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: pre-state roll within +-this (default 45, the paper's)")
     p.add_argument("--chunk-size", type=int, default=None, metavar="C",
                    help="samples per work unit (default 16, or the resumed file's)")
+    p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
+                   help="phase 1: the dove's feathers, rigid (default) or modal (bending; ~2.6x "
+                        "slower); the database only serves a dove with the same feathers")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -103,6 +106,8 @@ def validate(args: argparse.Namespace) -> None:
                         ("--pre-roll-deg", args.pre_roll_deg, 80)):
         if v is not None and not (math.isfinite(v) and 0 <= v <= hi):
             raise InputError(f"{flag} must be 0..{hi}, got {v}")
+    if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
+        raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
     if args.phase == 2:
         if args.from_db is None:
             raise InputError("--phase 2 needs --from DB (a phase-1 database)")
@@ -129,6 +134,8 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
         kwargs["pitch_deg"] = args.pre_pitch_deg
     if getattr(args, "pre_roll_deg", None) is not None:
         kwargs["roll_deg"] = args.pre_roll_deg
+    if getattr(args, "feathers", "rigid") != "rigid":
+        kwargs["feathers"] = args.feathers
     return SamplingConfig(**kwargs), SampleWorker
 
 

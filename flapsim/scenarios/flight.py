@@ -64,7 +64,7 @@ def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str
         from flapsim.bird.model import Dove
         from flapsim.render import ChaseCamera, render_video
 
-        model = Dove.load().model
+        model = Dove.load(feathers=opt.feathers).model
         dt = float(model.opt.timestep)
         stride = max(1, int(round(1.0 / (opt.fps * dt))))
         out = Path(opt.video_dir) / f"{stem}.mp4"
@@ -102,7 +102,8 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
             args.update(p["quick_args"])
         path = shape(**args)
     task = Task(path, wind=tuple(p.get("wind", (0.0, 0.0, 0.0))), flow=_flow(p.get("flow", ())),
-                plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0))
+                plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0),
+                feathers=opt.feathers)
     r, files = _fly(sc, opt, task)
     extra = {}
     if "capture_steering_deg" in p:
@@ -138,7 +139,8 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
     table, files, worst, sim = [], [], None, 0.0
     for f in forces:
         task = Task(paths.straight(40.0 if opt.quick else 60.0),
-                    pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M)
+                    pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M,
+                    feathers=opt.feathers)
         r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=bool(opt.video_dir))
         files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
         sim += r.metrics["simulated_s"]
@@ -179,7 +181,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     for i, off in enumerate(offsets):
         path = leader if i == 0 else paths.perturbed_copy(leader, off, p["jitter_m"], rng,
                                                           horizontal=True)
-        task = Task(path)
+        task = Task(path, feathers=opt.feathers)
         r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=True)
         results.append(r)
         tracks.append(_track(r))
@@ -250,7 +252,7 @@ def run_forest(sc: Scenario, opt: EvalOptions) -> dict:
 
     path = paths.forest_path()
     forest = make_forest(path, opt.seed)
-    task = Task(path, forest=forest)
+    task = Task(path, forest=forest, feathers=opt.feathers)
     r, files = _fly(sc, opt, task)
     return _result(r, files, trees=len(forest.trees))
 

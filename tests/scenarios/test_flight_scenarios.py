@@ -156,3 +156,26 @@ def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path):
     assert main(["eval", "--path", str(f), "--workers", "1", "--json", str(js)]) == 0
     r = json.loads(js.read_text())["scenarios"][0]
     assert r["status"] == "completed" and r["metrics"]["max_path_distance"] < 2.0, r
+
+
+@pytest.mark.slow
+def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
+    # a modal database is bound to the modal dove: eval flies the modal dove with it (a
+    # 'failed' run would mean the feathers were not passed through and the model hash
+    # refused the database), and refuses the bundled (rigid) one in one line
+    db = tmp_path / "modal.db"
+    assert main(["train", "--samples", "40", "--feathers", "modal", "--workers", "1",
+                 "--no-progress", "--out", str(db)]) == 0
+    from flapsim.bird.database import load_database
+    from flapsim.bird.model import Dove
+
+    h = load_database(db, require_finalized=True).header
+    assert h["model_hash"] == Dove.load(feathers="modal").hash() != Dove.load().hash()
+    js = tmp_path / "e.json"
+    rc = main(["eval", "--scenario", "wind-gusts", "--quick", "--feathers", "modal", "--db", str(db),
+               "--workers", "1", "--json", str(js)])
+    r = json.loads(js.read_text())["scenarios"][0]
+    assert r["status"] in ("completed", "lost") and rc == (0 if r["ok"] else 1), r
+    capsys.readouterr()
+    assert main(["eval", "--scenario", "wind-gusts", "--feathers", "modal"]) == 2
+    assert "--db" in capsys.readouterr().err
