@@ -181,3 +181,25 @@ def test_recovery_curve_on_the_path_is_the_path_itself():
     assert quat_distance(qd, np.array([np.cos(h / 2), 0, 0, np.sin(h / 2)])) == pytest.approx(
         0.5 * abs(trim.aoa), abs=1e-9)
 
+
+
+def test_in_a_crosswind_the_bird_crabs_so_that_its_ground_track_is_the_path():
+    # a 2 m/s wind from the right (+y) across a path along +x, airspeed 7 m/s: the air
+    # velocity that makes good +x is (sqrt(49 - 4), -2, 0), a heading of -asin(2/7) = -16.6 deg
+    from flapsim.bird.controller import Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget, _attitude_quat
+
+    path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
+    trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
+    w = np.array([0.0, 2.0, 0.0])
+    tgt = PathTarget(trim, path, speed=7.0, ki_speed=0.0, ki_altitude=0.0, wind=lambda p, t: w)
+    ground = np.array([np.sqrt(45.0), 0.0, 0.0])
+    p = np.array([5.0, 0.0, 10.0])
+    tgt.begin(p, ground)
+    snap = type("S", (), {"physics": np.zeros(1)})()
+    S = tgt(CycleEnd(snap, np.zeros(8), p + 0.1 * ground, np.array([1.0, 0, 0, 0]), ground, 0.1, 0.0))
+    heading = -np.arcsin(2.0 / 7.0)
+    assert quat_distance(tgt.desired[-1][1], _attitude_quat(heading, trim.aoa, 0.0)) < 1e-3
+    # S carries the ground velocity in the body frame: its speed is the ground speed
+    assert np.linalg.norm(S[2:5]) == pytest.approx(np.sqrt(45.0), abs=0.02)
