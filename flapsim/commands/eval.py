@@ -190,16 +190,20 @@ def print_table(results: list[dict]) -> None:
                   f"{_fmt(m.get('wingbeats')):>5}  {note}")
         print("per wingbeat: Ep, Ef in m; Er, Eo = ||log(q^-1 q')|| in rad (the paper's eq. 12-15)")
     if other:
-        print()
-        keys = sorted({k for r in other for k, v in r.get("metrics", {}).items()
-                       if isinstance(v, (int, float)) and not isinstance(v, bool)})[:6]
-        head = f"{'scenario':<22} {'status':<10} " + " ".join(f"{k[:14]:>14}" for k in keys) + "  note"
+        if flight:
+            print()
+        cols = (("distance_to_target_mean_m", "mean m", 2), ("distance_to_target_max_m", "max m", 2),
+                ("heading_error_mean_deg", "heading deg", 1), ("distance_swum_m", "swum m", 1),
+                ("time_to_reach_s", "reached s", 1))
+        head = f"{'scenario':<26} {'status':<10} " + " ".join(f"{c[1]:>11}" for c in cols) + "  note"
         print(head)
         print("-" * len(head))
         for r in other:
             m = r.get("metrics", {})
-            print(f"{r['scenario']:<22} {r['status']:<10} "
-                  + " ".join(f"{_fmt(m.get(k)):>14}" for k in keys) + f"  {r.get('reason', '')}")
+            print(f"{r['scenario']:<26} {r['status']:<10} "
+                  + " ".join(f"{_fmt(m.get(k), d):>11}" for k, _, d in cols) + f"  {r.get('reason', '')}")
+        print("distance to the target (to the path for the figure of eight), mean heading error, "
+              "distance swum, time the target was first reached")
 
 
 def _list() -> dict:
