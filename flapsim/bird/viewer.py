@@ -125,6 +125,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         headings, positions = [heading0], [fl.data.qpos[0:3].copy()]
         wall0 = time.perf_counter()
         status = "time up"
+        max_wind = 0.0
         v_prev = fl.com_velocity()
         while fl.data.time < seconds:
             t = float(fl.data.time)
@@ -151,6 +152,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             e = step.end
             v_prev = e.com_vel
             headings.append(float(np.arctan2(e.com_vel[1], e.com_vel[0])))
+            max_wind = max(max_wind, float(np.linalg.norm(
+                fl.flow.velocity(e.trunk_pos[None].copy(), float(fl.data.time))[0])))
             positions.append(e.trunk_pos.copy())
             frames = e.qpos[stride - 1::stride]
             t_start = t
@@ -159,8 +162,10 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 shown.qpos[:] = q
                 shown.time = t_start + (i + 1) * stride * dt
                 mujoco.mj_forward(m, shown)
+                steer = ("following the path\n-" if path is not None else
+                         f"{cmd.turn_rate_deg_s:+.0f} deg/s\n{cmd.climb_deg:+.0f} deg")
                 texts = ("steering\nelevation\nspeed\nwind\nkeys",
-                         f"{cmd.turn_rate_deg_s:+.0f} deg/s\n{cmd.climb_deg:+.0f} deg\n"
+                         f"{steer}\n"
                          f"{np.linalg.norm(e.com_vel):.2f} m/s (asked {cmd.speed:.2f})\n"
                          f"{_wind_text(fl, shown.time)}\n"
                          "arrows: steer/climb, PgUp/PgDn: speed, End: level,\n"
@@ -185,6 +190,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             "final_command": {"turn_rate_deg_s": cmd.turn_rate_deg_s, "climb_deg": cmd.climb_deg,
                               "speed": cmd.speed},
             "pushes": cmd.pushes, "gusts": cmd.gusts, "events": cmd.events,
+            "max_wind_m_s": max_wind,
             "wingbeats": len(headings) - 1}
 
 

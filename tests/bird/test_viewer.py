@@ -51,9 +51,9 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
         time.sleep(0.2)
     assert windows, app.communicate(timeout=30)[0].decode()[-2000:]
     time.sleep(1.0)  # the first wingbeats draw; the key callback is live
-    # three Left presses: a left turn of 15 deg/s asked
-    subprocess.run(["xdotool", "key", "--window", windows[0], "Left", "Left", "Left"], env=env,
-                   check=True, timeout=10)
+    # three Left presses: a left turn of 15 deg/s asked; then a push and a gust
+    subprocess.run(["xdotool", "key", "--window", windows[0], "Left", "Left", "Left", "Insert",
+                    "Delete"], env=env, check=True, timeout=10)
     geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", windows[0]], env=env,
                          capture_output=True, text=True, timeout=10).stdout
     g = dict(line.split("=") for line in geo.split() if "=" in line)
@@ -71,7 +71,12 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
     assert app.returncode == 0, log[-2000:]  # also: no crash while closing the window
     s = json.loads(out.read_text())["viewer"]
     assert s["final_command"]["turn_rate_deg_s"] == pytest.approx(15.0)
-    assert [e["key"] for e in s["events"]] == ["Left"] * 3
+    assert [e["key"] for e in s["events"]] == ["Left"] * 3 + ["Insert", "Delete"]
+    assert s["pushes"] == 1 and s["gusts"] == 1
+    # the gust is a 1-cosine of 3 m/s over 0.5 s, seen at wingbeat ends (~0.11 s apart): at
+    # least one falls within 0.054 s of its peak, where it blows > 1.5 (1 + cos(2 pi 0.054 / 0.5))
+    # = 2.67 m/s (still air: 0)
+    assert s["max_wind_m_s"] > 2.5, s
     # it turned left (+): the keys came ~1-2 s before the end of 3 s; straight flight under the
     # same controller holds its heading within ~2 deg (README), so > 5 deg is the command's doing
     assert s["heading_change_deg"] > 5.0, s
