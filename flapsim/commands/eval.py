@@ -136,10 +136,14 @@ def execute(runs: list[tuple[str, object]], workers: int | None, backend: str = 
     workers = workers or max(1, min(n, os.cpu_count() or 1))
     workers = min(workers, n)
     out: list[dict | None] = [None] * n
+    from flapsim.scenarios import get
+
+    # dearest first: the longest run must not be the one that starts last
+    order = sorted(range(n), key=lambda i: -get(runs[i][0]).cost)
     with ChunkExecutor(EvalWorker, RunsConfig(list(runs)), workers=workers, backend=backend,
                        address=address) as ex, \
             tqdm(total=n, desc="scenarios", unit="run") as bar:
-        for chunk in ex.map_unordered([(i, i + 1) for i in range(n)]):
+        for chunk in ex.map_unordered([(i, i + 1) for i in order]):
             for i, r in chunk:
                 out[i] = r
                 bar.set_postfix_str(f"{r['scenario']}: {r['status']}")

@@ -46,6 +46,9 @@ class Scenario:
     """The scenario's own settings, passed to the runner (and reported)."""
     in_all: bool = True
     """Part of ``--scenario all``."""
+    cost: float = 1.0
+    """Rough wall seconds it takes: parallel runs start with the dearest (a long run started
+    last would keep one worker busy alone at the end)."""
 
 
 @dataclass

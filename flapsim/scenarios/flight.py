@@ -305,14 +305,19 @@ def _register() -> None:
                    ("Gust", {"direction": (0.0, 0.0, -1.0), "amplitude": 3.0, "start": 3.0,
                              "duration": 0.5})]}),
     ]
+    # rough wall seconds on one idle core (from a whole-suite run; pushes fly five paths)
+    costs = {"figure8": 10.0, "figure8-level": 35.0, "plucked-3": 2.0, "plucked-4": 2.0,
+             "sinusoid": 15.0, "wind-steady-2": 4.0}
     for name, summary, runner, params in entries:
-        register(Scenario(name, "flight", summary, runners[runner], params))
+        register(Scenario(name, "flight", summary, runners[runner], params,
+                          cost=costs.get(name, 3.0)))
     for d in ("front", "back", "left", "right", "up", "down"):
         register(Scenario(f"push-{d}", "flight", f"level flight pushed {d} at the trunk's centre of "
                           f"mass for 0.1 s, {'/'.join(f'{f:g}' for f in PUSH_FORCES_N)} N",
-                          run_pushes, {"direction": d}))
+                          run_pushes, {"direction": d}, cost=15.0))
     register(Scenario("forest", "flight", "263 m through a 50 x 50 x 15 m wood of 60 trees: climbs, "
-                      "glides, turns both ways (collisions counted)", run_forest, {}))
+                      "glides, turns both ways (collisions counted)", run_forest, {},
+                      cost=12.0))
     register(Scenario("flock", "flight", "5 birds: a leader on a 40 m-lobe figure of eight and 4 "
                       "followers on copies 2.5 and 5 m above and below, their control points moved "
                       "within 1 m horizontally (no collisions)",
@@ -320,7 +325,7 @@ def _register() -> None:
                       {"birds": 5, "jitter_m": 1.0, "collision_m": 0.51,
                        "offsets": [(0, 0, 0), (0, 0, 2.5), (0, 0, -2.5), (0, 0, 5.0), (0, 0, -5.0)],
                        "args": {"lobe_m": 40.0, "rise_m": 0.0},
-                       "quick_args": {"lobe_m": 25.0, "rise_m": 0.0}}))
+                       "quick_args": {"lobe_m": 25.0, "rise_m": 0.0}}, cost=130.0))
     register(Scenario("path", "flight", "a user's path file (flapsim eval --path FILE)", run_path,
                       {"shape": "file"}, in_all=False))
 

@@ -209,7 +209,8 @@ for _stroke, _secs in (("crawl", 90.0), ("breaststroke", 115.0)):
         name=f"swim-figure8-{_stroke}", family="swim",
         summary=f"{_stroke} follows a figure of eight of 5 m loops (10 m lobes, 63 m; Fig. 14)",
         runner=figure_eight_runner,
-        params={"stroke": _stroke, "radius_m": 5.0, "seconds": _secs, "quick_seconds": 6.0}))
+        params={"stroke": _stroke, "radius_m": 5.0, "seconds": _secs, "quick_seconds": 6.0},
+        cost=_secs / 18.0))  # the swimmer runs ~20x real time
 
 register(Scenario(
     name="swim-cross-current", family="swim",
@@ -218,14 +219,16 @@ register(Scenario(
     runner=chase_runner,
     params={"stroke": "crawl", "target": (3.0, 0.0, 0.8, 0.0),
             "current": (0.0, CROSS_CURRENT, 0.0), "bound_m": CROSS_CURRENT_BOUND,
-            "seconds": 40.0, "quick_seconds": 6.0}))
+            "seconds": 40.0, "quick_seconds": 6.0},
+    cost=1.5))
 
 register(Scenario(
     name="swim-moving-target", family="swim",
     summary="crawl chases a target from 2 m ahead, 3 m left, moving +x at 0.6 m/s",
     runner=chase_runner,
     params={"stroke": "crawl", "target": (2.0, 3.0, 0.6, 0.0), "bound_m": 3.0,
-            "seconds": 30.0, "quick_seconds": 6.0}))
+            "seconds": 30.0, "quick_seconds": 6.0},
+    cost=1.0))
 
 register(Scenario(
     name="swim-density", family="swim",
@@ -233,19 +236,22 @@ register(Scenario(
     runner=density_runner,
     params={"stroke": "crawl", "target": (2.0, 3.0, 0.6, 0.0),
             "densities": (850.0, 1000.0, 1025.0, 1300.0, 2000.0), "quick_densities": (1000.0,),
-            "seconds": 30.0, "quick_seconds": 4.0}))
+            "seconds": 30.0, "quick_seconds": 4.0},
+    cost=5.0))
 
 register(Scenario(
     name="swim-dive", family="swim",
     summary="breaststroke to a point 2 m below the surface 8 m ahead, then up to the surface",
     runner=dive_runner,
     params={"stroke": "breaststroke", "waypoints": ((8.0, 0.0, -2.0), (16.0, 0.0, 0.0)),
-            "radius_m": 0.75, "seconds": 60.0, "quick_seconds": 4.0}))
+            "radius_m": 0.75, "seconds": 60.0, "quick_seconds": 4.0},
+    cost=2.0))
 
 register(Scenario(
     name="swim-trajectory", family="swim",
     summary="crawl chases a target moving along a timed trajectory file (45 deg zigzag, 60 s)",
     runner=trajectory_runner,
     # bound: about one turning diameter of the crawl (~10 m across), half of it
-    params={"stroke": "crawl", "bound_m": 5.0, "seconds": 60.0, "quick_seconds": 6.0}))
+    params={"stroke": "crawl", "bound_m": 5.0, "seconds": 60.0, "quick_seconds": 6.0},
+    cost=2.0))
 
