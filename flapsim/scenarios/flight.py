@@ -175,7 +175,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     # few control points, as the paper's B-spline: a 1 m jitter on points ~25 m apart bends
     # the path gently
     leader = paths.figure8(**(p["quick_args"] if opt.quick else p["args"]), n=13)
-    birds = p["birds"]
+    birds = p["quick_birds"] if opt.quick else p["birds"]
     offsets = p["offsets"][:birds]
     results, files, tracks = [], [], []
     for i, off in enumerate(offsets):
@@ -248,9 +248,12 @@ def make_forest(path, seed: int, n_trees: int = 60, clearance_m: float = 2.5):
 
 def run_forest(sc: Scenario, opt: EvalOptions) -> dict:
     from flapsim.bird import paths
+    from flapsim.bird.path import FlightPath
     from flapsim.bird.tasks import Task
 
     path = paths.forest_path()
+    if opt.quick:  # its first ~60 m
+        path = FlightPath(path.points[:5])
     forest = make_forest(path, opt.seed)
     task = Task(path, forest=forest, feathers=opt.feathers)
     r, files = _fly(sc, opt, task)
@@ -266,14 +269,14 @@ def _register() -> None:
         ("figure8", "figure of eight, 35 m lobes, rising 2 m on one lobe and descending on the "
          "other (ascending and descending turns, the paper's Table I path; climbs up to 2.3 deg)", P,
          {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 2.0},
-          "quick_args": {"lobe_m": 25.0, "rise_m": 0.5}}),
+          "quick_args": {"lobe_m": 10.0, "rise_m": 0.5}}),
         ("figure8-rise3", "the same figure of eight rising and falling 3 m (climbs up to 3.5 deg "
          "while turning)", P,
          {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 3.0},
-          "quick_args": {"lobe_m": 25.0, "rise_m": 0.5}}),
+          "quick_args": {"lobe_m": 10.0, "rise_m": 0.5}}),
         ("figure8-level", "figure of eight, 35 m lobes, level", P,
          {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 0.0},
-          "quick_args": {"lobe_m": 25.0}}),
+          "quick_args": {"lobe_m": 10.0}}),
         ("sinusoid", "rapid side-to-side turns: y = 4 sin(2 pi x / 40 m), 4 waves (steering range "
          "per wingbeat against the capture set's)", P,
          {"shape": "sinusoid", "args": {}, "quick_args": {"waves": 1.0},
@@ -287,7 +290,7 @@ def _register() -> None:
         entries.append((name, f"level figure of eight with primaries {plucked} (from the outermost) "
                         "plucked on the left wing", P,
                         {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 0.0},
-                         "quick_args": {"lobe_m": 25.0},
+                         "quick_args": {"lobe_m": 10.0},
                          "plucked": [primary_name("l", i) for i in plucked]}))
     entries += [
         ("wind-steady", "40 m straight with a steady 1 m/s crosswind from the right", P,
@@ -329,7 +332,8 @@ def _register() -> None:
                       {"birds": 5, "jitter_m": 1.0, "collision_m": 0.51,
                        "offsets": [(0, 0, 0), (0, 0, 2.5), (0, 0, -2.5), (0, 0, 5.0), (0, 0, -5.0)],
                        "args": {"lobe_m": 40.0, "rise_m": 0.0},
-                       "quick_args": {"lobe_m": 25.0, "rise_m": 0.0}}, cost=130.0))
+                       "quick_args": {"lobe_m": 10.0, "rise_m": 0.0}, "quick_birds": 2},
+                      cost=130.0))
     register(Scenario("path", "flight", "a user's path file (flapsim eval --path FILE)", run_path,
                       {"shape": "file"}, in_all=False))
 

@@ -179,3 +179,25 @@ def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
     capsys.readouterr()
     assert main(["eval", "--scenario", "wind-gusts", "--feathers", "modal"]) == 2
     assert "--db" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_every_flight_scenario_runs_its_quick_variant_to_a_verdict(tmp_path):
+    # every runner end to end (short variants, two worker processes): each gives a verdict
+    # and its own numbers; 'failed' (a runner's error) or 'diverged' would be a bug here
+    from flapsim.commands.eval import execute
+
+    names = scenarios.names(family="flight", all_only=True)
+    opts = scenarios.EvalOptions(quick=True, plots_dir=str(tmp_path))
+    results = execute([(n, opts) for n in names], workers=2)
+    assert [r["scenario"] for r in results] == names
+    for r in results:
+        assert r["status"] in ("completed", "lost"), r
+        assert r["ok"] == (r["status"] == "completed")
+    by = {r["scenario"]: r for r in results}
+    assert by["flock"]["metrics"]["birds"] == 2 and by["flock"]["metrics"]["min_separation_m"] > 0
+    for d in ("front", "back", "left", "right", "up", "down"):
+        assert [row["newtons"] for row in by[f"push-{d}"]["metrics"]["table"]] == [8.0]
+    assert by["forest"]["metrics"]["trees"] > 10
+    # a plot per flown path (pushes: one per force; flock: one per bird)
+    assert len(list(tmp_path.glob("*.png"))) >= len(names)
