@@ -185,6 +185,8 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
         r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=True)
         results.append(r)
         tracks.append(_track(r))
+        if not opt.video_dir:
+            r.qpos = None  # every step's full state (~100 MB a bird) is only needed for a video
         files += _outputs(sc, opt, task, r, tag=f"bird{i}")
     sep = min_separation(tracks)
     collided = bool(sep < p["collision_m"])
@@ -205,7 +207,7 @@ def _track(r) -> tuple[np.ndarray, np.ndarray]:
     """(times, positions) of every step (recorded) of a flown task."""
     n = len(r.qpos)
     t = r.times[0] + (np.arange(n) + 1) * (r.times[-1] - r.times[0]) / n
-    return t, r.qpos[:, 0:3]
+    return t, r.qpos[:, 0:3].copy()
 
 
 def min_separation(tracks: list[tuple[np.ndarray, np.ndarray]]) -> float:
