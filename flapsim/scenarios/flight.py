@@ -64,12 +64,18 @@ def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str
         from flapsim.bird.model import Dove
         from flapsim.render import ChaseCamera, render_video
 
-        model = Dove.load(feathers=opt.feathers).model
+        dove = Dove.load(feathers=opt.feathers)
+        model, hook = dove.model, None
+        if opt.feathers == "modal":  # draw the feathers bent, as they flew
+            from flapsim.bird.modal_feathers import video_model
+
+            model, hook = video_model(dove)
         dt = float(model.opt.timestep)
         stride = max(1, int(round(1.0 / (opt.fps * dt))))
         out = Path(opt.video_dir) / f"{stem}.mp4"
         render_video(model, r.qpos[::stride], out, fps=1.0 / (stride * dt),
-                     camera=ChaseCamera("trunk"), width=opt.size[0], height=opt.size[1])
+                     camera=ChaseCamera("trunk"), width=opt.size[0], height=opt.size[1],
+                     before_frame=hook)
         files.append(str(out))
     return files
 

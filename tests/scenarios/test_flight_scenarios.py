@@ -173,9 +173,11 @@ def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
     assert h["model_hash"] == Dove.load(feathers="modal").hash() != Dove.load().hash()
     js = tmp_path / "e.json"
     rc = main(["eval", "--scenario", "wind-gusts", "--quick", "--feathers", "modal", "--db", str(db),
-               "--workers", "1", "--json", str(js)])
+               "--workers", "1", "--video", str(tmp_path / "v"), "--json", str(js)])
     r = json.loads(js.read_text())["scenarios"][0]
     assert r["status"] in ("completed", "lost") and rc == (0 if r["ok"] else 1), r
+    # its video, drawn on the modal model (its qpos has the modes' coordinates)
+    assert (tmp_path / "v" / "wind-gusts.mp4").stat().st_size > 10_000
     capsys.readouterr()
     assert main(["eval", "--scenario", "wind-gusts", "--feathers", "modal"]) == 2
     assert "--db" in capsys.readouterr().err
