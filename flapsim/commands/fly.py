@@ -120,18 +120,9 @@ def run(args: argparse.Namespace) -> dict:
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        from flapsim.render import ChaseCamera, render_video
+        from flapsim.bird.video import dove_video
 
-        dt = float(dove.model.opt.timestep)
-        stride = max(1, int(round(1.0 / (args.fps * dt))))
-        model, hook = dove.model, None
-        if dove.modal is not None:  # draw the feathers deformed
-            from flapsim.bird.modal_feathers import video_model
-
-            model, hook = video_model(dove)
-        n = render_video(model, flight.qpos[::stride], args.video, fps=1.0 / (stride * dt),
-                         camera=ChaseCamera("trunk"), width=width, height=height,
-                         before_frame=hook)
+        n = dove_video(dove, flight.qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
     return result
@@ -233,13 +224,9 @@ def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, h
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        from flapsim.render import ChaseCamera, render_video
+        from flapsim.bird.video import dove_video
 
-        model = Dove.load().model
-        dt = float(model.opt.timestep)
-        stride = max(1, int(round(1.0 / (args.fps * dt))))
-        n = render_video(model, r.qpos[::stride], args.video, fps=1.0 / (stride * dt),
-                         camera=ChaseCamera("trunk"), width=width, height=height)
+        n = dove_video(Dove.load(), r.qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
 
@@ -260,11 +247,8 @@ def _write_outputs(args: argparse.Namespace, dove, flight, result: dict, width: 
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        from flapsim.render import ChaseCamera, render_video
+        from flapsim.bird.video import dove_video
 
-        dt = float(dove.model.opt.timestep)
-        stride = max(1, int(round(1.0 / (args.fps * dt))))
-        n = render_video(dove.model, qpos[::stride], args.video, fps=1.0 / (stride * dt),
-                         camera=ChaseCamera("trunk"), width=width, height=height)
+        n = dove_video(dove, qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video

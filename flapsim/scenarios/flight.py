@@ -62,20 +62,10 @@ def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str
         files.append(str(out))
     if opt.video_dir and r.qpos is not None and len(r.qpos):
         from flapsim.bird.model import Dove
-        from flapsim.render import ChaseCamera, render_video
+        from flapsim.bird.video import dove_video
 
-        dove = Dove.load(feathers=opt.feathers)
-        model, hook = dove.model, None
-        if opt.feathers == "modal":  # draw the feathers bent, as they flew
-            from flapsim.bird.modal_feathers import video_model
-
-            model, hook = video_model(dove)
-        dt = float(model.opt.timestep)
-        stride = max(1, int(round(1.0 / (opt.fps * dt))))
         out = Path(opt.video_dir) / f"{stem}.mp4"
-        render_video(model, r.qpos[::stride], out, fps=1.0 / (stride * dt),
-                     camera=ChaseCamera("trunk"), width=opt.size[0], height=opt.size[1],
-                     before_frame=hook)
+        dove_video(Dove.load(feathers=opt.feathers), r.qpos, out, opt.fps, *opt.size)
         files.append(str(out))
     return files
 
@@ -271,8 +261,7 @@ def run_forest(sc: Scenario, opt: EvalOptions) -> dict:
 # -- registration ---------------------------------------------------------------------------
 
 def _register() -> None:
-    P = "run_path"
-    runners = {"run_path": run_path}
+    P = run_path
     entries = [
         ("figure8", "figure of eight, 35 m lobes, rising 2 m on one lobe and descending on the "
          "other (ascending and descending turns, the paper's Table I path; climbs up to 2.3 deg)", P,
@@ -324,7 +313,7 @@ def _register() -> None:
     costs = {"figure8": 35.0, "figure8-rise3": 10.0, "figure8-level": 35.0, "plucked-3": 2.0,
              "plucked-4": 2.0, "sinusoid": 15.0, "wind-steady-2": 4.0}
     for name, summary, runner, params in entries:
-        register(Scenario(name, "flight", summary, runners[runner], params,
+        register(Scenario(name, "flight", summary, runner, params,
                           cost=costs.get(name, 3.0)))
     for d in ("front", "back", "left", "right", "up", "down"):
         register(Scenario(f"push-{d}", "flight", f"level flight pushed {d} at the trunk's centre of "

@@ -1,0 +1,25 @@
+"""A chase-camera video of a dove flight from its recorded steps (rigid or modal feathers)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+
+def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float = 30.0,
+               width: int = 640, height: int = 480) -> int:
+    """Render every simulation step's ``qpos`` (n, nq) of ``dove``, subsampled to ``fps``,
+    to ``path``; modal feathers are drawn bent. Returns the number of frames."""
+    from flapsim.render import ChaseCamera, render_video
+
+    model, hook = dove.model, None
+    if dove.modal is not None:
+        from flapsim.bird.modal_feathers import video_model
+
+        model, hook = video_model(dove)
+    dt = float(model.opt.timestep)
+    stride = max(1, int(round(1.0 / (fps * dt))))
+    return render_video(model, np.asarray(qpos_steps)[::stride], path, fps=1.0 / (stride * dt),
+                        camera=ChaseCamera("trunk"), width=width, height=height,
+                        before_frame=hook)
