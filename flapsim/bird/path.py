@@ -202,14 +202,11 @@ class PathTarget:
     """``wind(position, t) -> (3,)`` world air velocity the bird feels (None: still air):
     the path's ground track is then flown with the airspeed ``speed`` along the air-relative
     direction that makes it good (crabbing into a crosswind)."""
-    anchor: str = "start"
-    """Where the recovery curve starts: ``start`` (the bird's position and velocity when the
-    wingbeat begins, as the paper says; set by :meth:`begin`) or ``predicted`` (where the
-    reference wingbeat P0 would end)."""
     _start: tuple | None = None
 
     def begin(self, position: np.ndarray, velocity: np.ndarray) -> None:
-        """The bird's trunk position and centre-of-mass velocity as the wingbeat begins."""
+        """The bird's trunk position and centre-of-mass velocity as the wingbeat begins: where
+        the recovery curve starts, as the paper says (call it before every wingbeat)."""
         self._start = (np.asarray(position, float).copy(), np.asarray(velocity, float).copy())
 
     @property
@@ -218,13 +215,11 @@ class PathTarget:
         return self.s >= self.path.length - 1e-6
 
     def __call__(self, e0: cycle.CycleEnd) -> np.ndarray:
-        dt = e0.duration
-        if self.anchor == "start" and self._start is not None:
-            p, v = self._start
-            t_end = dt  # the curve starts now; the wingbeat ends dt later on it
-        else:
-            p, v = e0.trunk_pos, e0.com_vel
-            t_end = dt
+        dt = e0.duration  # the curve starts as the wingbeat begins; it ends dt later on it
+        if self._start is None:
+            raise InputError("PathTarget.begin(position, velocity) must be called before each "
+                             "wingbeat: the recovery curve starts there")
+        p, v = self._start
         speed_now = float(np.linalg.norm(v))
         # progress never goes back, and looks at most a few seconds ahead (self-crossing paths)
         self.s = self.path.closest(p, self.s - 1.0, self.s + 3.0 * max(speed_now, self.speed))
@@ -232,11 +227,10 @@ class PathTarget:
         p_t = self.path.point(s_t)
         t_t = self.path.tangent(s_t) * max(speed_now, 1.0)
         T = self.lookahead_s
-        pd, vd, ad = hermite(p, v, p_t, t_t, T, min(t_end, T))
+        pd, vd, ad = hermite(p, v, p_t, t_t, T, min(dt, T))
         w = (np.zeros(3) if self.wind is None
              else np.asarray(self.wind(p, float(e0.snapshot.physics[0])), float))
-        speed_now = float(np.linalg.norm(v - w))  # airspeed
-        e_v = self.speed - speed_now
+        e_v = self.speed - float(np.linalg.norm(v - w))  # the speed asked is airspeed
         e_z = float(self.path.point(self.s)[2] - p[2])
         # anti-windup: the integrals may ask at most 2 m/s of speed and 1 m/s of climb
         lim = np.array([2.0 / max(self.ki_speed, 1e-9), 1.0 / max(self.ki_altitude, 1e-9)])

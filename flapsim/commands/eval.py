@@ -267,9 +267,8 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     cache.mkdir(exist_ok=True)
     # the bundled database's sampling (phase 1, pre-states within 10 deg), seed 1
     config = SamplingConfig(seed=1, pitch_deg=10.0, roll_deg=10.0)
-    biggest = max(sizes)
     dbs = {}
-    for n in sorted(set(sizes) | {10000 if 10000 in sizes else biggest}):
+    for n in sorted(set(sizes)):
         out = cache / f"phase1_{n}.db"
         if not out.exists() and _is_bundled_run(config, n):
             # the bundled database is this very run: copy it rather than train it again
@@ -290,7 +289,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.db, o.k = str(dbs[n]), max(1, round(0.005 * n))
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
-    base = 10000 if 10000 in dbs else biggest
+    base = 10000 if 10000 in dbs else max(dbs)
     for kp in TABLE1_K_PERCENT:
         if kp == 0.5:
             continue
