@@ -45,6 +45,21 @@ class XDisplay:
         self.procs.append(proc)
         return proc
 
+    def window(self, app: subprocess.Popen, env: dict, timeout: float = 60.0) -> str:
+        """The id of ``app``'s MuJoCo window once it is open (the test fails with the app's
+        output if it never opens), after a second for the first frames to draw and the key
+        callback to be live."""
+        windows: list[str] = []
+        deadline = time.monotonic() + timeout
+        while not windows and time.monotonic() < deadline and app.poll() is None:
+            found = subprocess.run(["xdotool", "search", "--name", "MuJoCo"], env=env,
+                                   capture_output=True, text=True, timeout=10)
+            windows = found.stdout.split()
+            time.sleep(0.2)
+        assert windows, app.communicate(timeout=30)[0].decode()[-2000:]
+        time.sleep(1.0)
+        return windows[0]
+
 
 @pytest.fixture
 def xvfb_display():
@@ -77,3 +92,45 @@ def _stop(proc: subprocess.Popen) -> None:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(timeout=10)
+
+
+@pytest.fixture
+def sigterm_with_workers():
+    """``run(cmd, cwd, settle_s)``: start a ``flapsim`` command line (the repository on
+    PYTHONPATH), wait until it has two worker processes, let them work ``settle_s``, send
+    SIGTERM, and return (exit status, stderr, the workers still alive half a second later)."""
+    import os
+    import signal
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+
+    def alive(pid: str) -> bool:
+        try:
+            return "zombie" not in Path(f"/proc/{pid}/status").read_text().lower()
+        except OSError:
+            return False
+
+    def run(args: list[str], cwd: Path, settle_s: float) -> tuple[int, str, list[str]]:
+        proc = subprocess.Popen([sys.executable, "-m", "flapsim.cli", *args], cwd=cwd,
+                                env=dict(os.environ, PYTHONPATH=str(root)),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            t_end = time.monotonic() + 120
+            kids: list[str] = []
+            while len(kids) < 2:  # both workers started
+                assert proc.poll() is None and time.monotonic() < t_end, proc.communicate()
+                time.sleep(0.1)
+                kids = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True,
+                                      text=True).stdout.split()
+            time.sleep(settle_s)
+            proc.send_signal(signal.SIGTERM)
+            _, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        time.sleep(0.5)
+        return proc.returncode, err, [k for k in kids if alive(k)]
+
+    return run
+

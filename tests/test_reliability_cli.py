@@ -308,37 +308,11 @@ def test_uniform_stiffness_leaves_a_planar_root_alone():
     assert [c.names[0] for c in fix_root(m)] == ["x", "z", "pitch"]
 
 
-def test_sigterm_stops_a_parallel_sweep_and_its_workers(tmp_path):
-    import signal
-    import time
-
-    cmd = [sys.executable, "-m", "flapsim.cli", "sweep", "--vary", "lungs", "--values", "1,2",
-           "--seconds", "3600", "--workers", "2", "--csv", "t.csv", "--json", "t.json"]
-    proc = subprocess.Popen(cmd, cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(ROOT)),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        t_end = time.monotonic() + 90
-        kids: list[str] = []
-        while len(kids) < 2:  # both workers started
-            assert proc.poll() is None and time.monotonic() < t_end, proc.communicate()
-            time.sleep(0.1)
-            kids = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True,
-                                  text=True).stdout.split()
-        time.sleep(1.0)  # the workers are swimming
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 143, err
+def test_sigterm_stops_a_parallel_sweep_and_its_workers(tmp_path, sigterm_with_workers):
+    status, err, alive = sigterm_with_workers(
+        ["sweep", "--vary", "lungs", "--values", "1,2", "--seconds", "3600", "--workers", "2",
+         "--csv", "t.csv", "--json", "t.json"], tmp_path, settle_s=1.0)  # the workers swim
+    assert status == 143, err
     assert err.strip().splitlines()[-1] == "flapsim sweep: terminated (SIGTERM)"
-    time.sleep(0.5)
-    assert not [k for k in kids if _alive(k)]
+    assert not alive
     assert list(tmp_path.iterdir()) == []
-
-
-def _alive(pid: str) -> bool:
-    try:
-        return "zombie" not in Path(f"/proc/{pid}/status").read_text().lower()
-    except OSError:
-        return False

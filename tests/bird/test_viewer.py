@@ -42,19 +42,11 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
     out = tmp_path / "v.json"
     app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli", "view", "--seconds", "4",
                               "--json", str(out)], env)
-    windows: list[str] = []
-    deadline = time.monotonic() + 60
-    while not windows and time.monotonic() < deadline and app.poll() is None:
-        found = subprocess.run(["xdotool", "search", "--name", "MuJoCo"], env=env,
-                               capture_output=True, text=True, timeout=10)
-        windows = found.stdout.split()
-        time.sleep(0.2)
-    assert windows, app.communicate(timeout=30)[0].decode()[-2000:]
-    time.sleep(1.0)  # the first wingbeats draw; the key callback is live
+    window = xvfb_display.window(app, env)
     # three Left presses: a left turn of 15 deg/s asked; then a push and a gust
-    subprocess.run(["xdotool", "key", "--window", windows[0], "Left", "Left", "Left", "Insert",
+    subprocess.run(["xdotool", "key", "--window", window, "Left", "Left", "Left", "Insert",
                     "Delete"], env=env, check=True, timeout=10)
-    geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", windows[0]], env=env,
+    geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", window], env=env,
                          capture_output=True, text=True, timeout=10).stdout
     g = dict(line.split("=") for line in geo.split() if "=" in line)
     x, y, w, h = (int(g[k]) for k in ("X", "Y", "WIDTH", "HEIGHT"))

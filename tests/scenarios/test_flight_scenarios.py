@@ -205,45 +205,14 @@ def test_every_flight_scenario_runs_its_quick_variant_to_a_verdict(tmp_path):
     assert len(list(tmp_path.glob("*.png"))) >= len(names)
 
 
-def test_sigterm_stops_eval_and_its_workers_leaving_no_file(tmp_path):
+def test_sigterm_stops_eval_and_its_workers_leaving_no_file(tmp_path, sigterm_with_workers):
     # two long runs on two worker processes, stopped mid-flight: exit 143, no JSON, no plot
     # and no hidden temporary file in the plots folder, no worker left alive
-    import os
-    import signal
-    import subprocess
-    import sys
-    import time
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[2]
     (tmp_path / "plots").mkdir()
-    cmd = [sys.executable, "-m", "flapsim.cli", "eval", "--scenario", "figure8-level,figure8",
-           "--workers", "2", "--plots", "plots", "--json", "e.json"]
-    proc = subprocess.Popen(cmd, cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(root)),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        t_end = time.monotonic() + 120
-        kids: list[str] = []
-        while len(kids) < 2:
-            assert proc.poll() is None and time.monotonic() < t_end, proc.communicate()
-            time.sleep(0.1)
-            kids = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True,
-                                  text=True).stdout.split()
-        time.sleep(3.0)  # the workers are flying
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 143, err
+    status, err, alive = sigterm_with_workers(
+        ["eval", "--scenario", "figure8-level,figure8", "--workers", "2", "--plots", "plots",
+         "--json", "e.json"], tmp_path, settle_s=3.0)  # the workers are flying
+    assert status == 143, err
     assert err.strip().splitlines()[-1] == "flapsim eval: terminated (SIGTERM)"
-    time.sleep(0.5)
-    alive = []
-    for k in kids:
-        try:
-            if "zombie" not in Path(f"/proc/{k}/status").read_text().lower():
-                alive.append(k)
-        except OSError:
-            pass
     assert not alive
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["plots"]

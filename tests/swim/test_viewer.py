@@ -7,7 +7,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -32,16 +31,8 @@ def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
     app = xvfb_display.spawn(
         [sys.executable, "-m", "flapsim.cli", "swim", "--viewer", "--stroke", "crawl",
          "--seconds", "8", "--layers", "basic", "--json", str(out)], env)
-    windows: list[str] = []
-    deadline = time.monotonic() + 40
-    while not windows and time.monotonic() < deadline and app.poll() is None:
-        found = subprocess.run(["xdotool", "search", "--name", "MuJoCo"], env=env,
-                               capture_output=True, text=True, timeout=10)
-        windows = found.stdout.split()
-        time.sleep(0.2)
-    assert windows, app.communicate(timeout=30)[0].decode()[-2000:]
-    time.sleep(1.0)  # let the first frames draw, so the key callback is live
-    subprocess.run(["xdotool", "key", "--window", windows[0], "Up", "Up", "Left", "Page_Up",
+    window = xvfb_display.window(app, env, timeout=40)
+    subprocess.run(["xdotool", "key", "--window", window, "Up", "Up", "Left", "Page_Up",
                     "End", "End"], env=env, check=True, timeout=10)
     log = app.communicate(timeout=90)[0].decode()
     assert app.returncode == 0, log[-2000:]  # also: no crash while closing the window
