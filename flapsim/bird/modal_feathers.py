@@ -602,82 +602,90 @@ class ModalFeathers(CompiledProvider):
         return float((shaft - rest) @ fm.normal), float(q @ fm.twist[-1])
 
 
-class MeshDeformer:
-    """Draws the deformed feathers: writes each feather's deformed vertices into the mesh
-    vertex arrays of a (rendering) model (the feather mesh and its underside twin), to be
-    uploaded to the GPU before a frame.
+class FeatherDrawing:
+    """A display copy of a modal dove whose feathers are drawn bent: the videos' and the
+    viewer's one way of drawing them.
 
-    Use with a *copy* of the modal model (the meshes change)::
+    Each feather's two mesh geoms (top and underside) are replaced by a MuJoCo flex of the
+    same vertices and triangles on the same bone, and :meth:`apply` writes each feather's
+    deformed vertices (the warp the force engine uses, :meth:`ModalFeathers.body_vertices`)
+    into ``flex_vert`` (the flex's vertices in its bone's frame). MuJoCo turns them into
+    world points in ``mj_forward`` (``flexvert_xpos``) and every renderer draws flexes from
+    those each frame. Why flexes: bent *meshes* must be re-uploaded to the GL context per
+    frame, one ``mjr_uploadMesh`` per mesh; the passive viewer does that one mesh per render
+    loop pass (~70 ms each under Xvfb: 8 s a frame for the dove's 112 feather meshes), a
+    flex costs nothing to upload. The flex collides with nothing (contype = conaffinity = 0)
+    and adds no mass or DOF: the display model has the physics model's ``qpos`` layout, so
+    a physics state is drawn by copying its ``qpos``. The dove's own model is untouched.
 
-        view = copy.copy(dove.model)   # or a second Dove.load(feathers="modal").model
-        deformer = MeshDeformer(view, flight.modal)
-        for q in qpos_frames:
-            d.qpos[:] = q; mujoco.mj_forward(view, d)
-            deformer.apply(d)                      # mesh_vert of the feathers
-            deformer.upload(renderer)              # mjr_uploadMesh for each of them
-            renderer.update_scene(d, cam); frame = renderer.render()
+    Use::
+
+        draw = FeatherDrawing(dove)
+        d = mujoco.MjData(draw.model)
+        d.qpos[:] = qpos; draw.apply(d); mujoco.mj_forward(draw.model, d)   # then render d
     """
 
-    def __init__(self, model: mujoco.MjModel, modal: ModalFeathers):
-        from flapsim.bird.model import UNDERSIDE
+    def __init__(self, dove) -> None:
+        from flapsim.bird.model import UNDERSIDE, build_xml
 
-        self.model = model
-        self.modal = modal
-        self.meshes: list[tuple[int, list[int], np.ndarray, np.ndarray]] = []
-        for i, fm in enumerate(modal.modes):
-            ids = []
-            for name in (fm.name, fm.name + UNDERSIDE):
-                g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
-                if g < 0:
-                    raise InputError(f"model has no feather mesh geom {name!r}")
-                ids.append(int(model.geom_dataid[g]))
-            g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, fm.name)
-            R = np.zeros(9)
-            mujoco.mju_quat2Mat(R, model.geom_quat[g])
-            # body frame -> mesh frame: v_mesh = R^T (v_body - geom_pos)
-            self.meshes.append((i, ids, R.reshape(3, 3), model.geom_pos[g].copy()))
-            if model.mesh_vertnum[ids[0]] != len(fm.vert_x):
-                raise InputError(f"feather mesh {fm.name} has {model.mesh_vertnum[ids[0]]} vertices, "
-                                 f"its modes {len(fm.vert_x)}")
-
-    def body_frame_vertices(self, data: mujoco.MjData) -> list[np.ndarray]:
-        """Deformed vertices of every feather in its body frame."""
-        out = []
-        for i, _, _, _ in self.meshes:
-            a = self.modal.qadr[i]
-            out.append(self.modal.body_vertices(data.qpos[a:a + self.modal.K], i))
-        return out
+        if dove.modal is None:
+            raise InputError("FeatherDrawing draws a modal dove (Dove.load(feathers='modal'))")
+        modes = dove_feather_modes(dove.params, dove.modal)
+        root = ET.fromstring(build_xml(dove.params, modal=dove.modal))
+        gone = {fm.name for fm in modes} | {fm.name + UNDERSIDE for fm in modes}
+        rgba = {}
+        for body in root.iter("body"):
+            for g in list(body.findall("geom")):
+                if g.get("name") in gone:
+                    body.remove(g)
+        for g in range(dove.model.ngeom):
+            rgba[mujoco.mj_id2name(dove.model, mujoco.mjtObj.mjOBJ_GEOM, g)] = dove.model.geom_rgba[g]
+        deformable = ET.SubElement(root, "deformable")
+        # rest vertices in the bone's frame: the warp at q = 0 (the same vertex order as the
+        # force engine's and the meshes')
+        rest = ModalFeathers(dove.model, modes, _drawing_table(), 1.0)
+        for i, fm in enumerate(modes):
+            v = rest.body_vertices(np.zeros(rest.K), i)
+            # dim 2: a surface drawn from both sides (the meshes needed an underside twin)
+            f = ET.SubElement(deformable, "flex", name=fm.name, dim="2", radius="0.0002",
+                              body=" ".join([fm.body] * len(v)), vertex=_v(v),
+                              element=" ".join(str(int(k)) for k in fm.faces.ravel()),
+                              rgba=_v(rgba[fm.name]))
+            ET.SubElement(f, "contact", contype="0", conaffinity="0")
+        self.model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
+        m = self.model
+        if m.nq != dove.model.nq or not np.array_equal(m.jnt_qposadr, dove.model.jnt_qposadr) \
+                or not np.array_equal(m.body_mass, dove.model.body_mass):
+            raise ModelError("the feather drawing model does not match the dove's qpos layout "
+                             "(a dove not built by Dove.load(feathers='modal')?)")
+        self.modal = ModalFeathers(m, modes, _drawing_table(), 1.0)
+        self.vertadr = np.array([m.flex_vertadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, fm.name)]
+                                 for fm in modes])
 
     def apply(self, data: mujoco.MjData) -> None:
-        m = self.model
-        for (_, ids, R, pos), vb in zip(self.meshes, self.body_frame_vertices(data), strict=True):
-            vm = (vb - pos) @ R
-            for mid in ids:
-                a = m.mesh_vertadr[mid]
-                m.mesh_vert[a:a + len(vm)] = vm
+        """Write the deformed feathers of the state in ``data.qpos`` into the model's flex
+        vertices; ``mj_forward`` (or ``mj_flex`` after it) then places them."""
+        md, K, vert = self.modal, self.modal.K, self.model.flex_vert
+        for i, a in enumerate(self.vertadr):
+            q0 = md.qadr[i]
+            v = md.body_vertices(data.qpos[q0:q0 + K], i)
+            vert[a:a + len(v)] = v
 
-    def upload(self, renderer: mujoco.Renderer) -> None:
-        ctx = renderer._mjr_context  # the bindings keep the GL context here
-        for _, ids, _, _ in self.meshes:
-            for mid in ids:
-                mujoco.mjr_uploadMesh(self.model, ctx, mid)
+    def before_frame(self, data: mujoco.MjData, renderer: object = None) -> None:
+        """The ``before_frame`` hook of :func:`flapsim.render.render_video` (it runs after
+        the frame's ``mj_forward``): deform, then place the flex vertices again."""
+        self.apply(data)
+        mujoco.mj_flex(self.model, data)
+
+
+def _drawing_table() -> CoefficientTable:
+    from flapsim.fluid.coefficients import get_table
+
+    return get_table("flat_plate")  # only the geometry (the warp) is used: any table
 
 
 def video_model(dove) -> tuple[mujoco.MjModel, object]:
-    """A rendering copy of a modal dove's model and the ``before_frame`` hook of
-    :func:`flapsim.render.render_video` that draws its feathers deformed; the copy's meshes
-    change per frame, the dove's own model is untouched."""
-    import copy
-
-    from flapsim.fluid.coefficients import get_table
-
-    view = copy.copy(dove.model)
-    modal = ModalFeathers(view, dove_feather_modes(dove.params, dove.modal),
-                          get_table("flat_plate"), 1.0)
-    deformer = MeshDeformer(view, modal)
-
-    def before_frame(data: mujoco.MjData, renderer: mujoco.Renderer) -> None:
-        deformer.apply(data)
-        deformer.upload(renderer)
-
-    return view, before_frame
+    """The rendering model of a modal dove and the ``before_frame`` hook of
+    :func:`flapsim.render.render_video` that draws its feathers bent (:class:`FeatherDrawing`)."""
+    draw = FeatherDrawing(dove)
+    return draw.model, draw.before_frame

@@ -15,7 +15,9 @@ the simulation loop between wingbeats (the viewer's key callback only queues the
 * Home: tracking / free camera.
 
 With a path (``path=``) the bird follows it instead (keys still push and gust) and the
-path is drawn.
+path is drawn. With modal feathers (``feathers="modal"``, a database trained on that dove)
+the feathers are drawn bent each frame (:class:`flapsim.bird.modal_feathers.FeatherDrawing`,
+the videos' drawing).
 """
 
 from __future__ import annotations
@@ -91,9 +93,10 @@ class Command:
 
 
 def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = None,
-                path=None, launch=None) -> dict:
+                path=None, launch=None, feathers: str = "rigid") -> dict:
     """Fly the dove under the keys for ``seconds`` of simulated time (or until the window
-    closes); returns what happened (keys, headings, distance)."""
+    closes); returns what happened (keys, headings, distance). ``feathers``: ``rigid`` or
+    ``modal`` (then ``db`` must be a database of the modal dove)."""
     from flapsim.bird.controller import CruiseTarget, start_cruise, trim_of_base_flight
     from flapsim.bird.flight import FlightConfig
     from flapsim.bird.path import PathTarget, start_on_path
@@ -101,7 +104,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
 
     # a gust primitive that is inert (zero amplitude) until Delete re-packs it in place
     fl, ctl = build_flight(Task(path if path is not None else _dummy_path(),
-                                flow=(Gust((0.0, 1.0, 0.0), 0.0, 0.0, GUST_S),)), db, method, k)
+                                flow=(Gust((0.0, 1.0, 0.0), 0.0, 0.0, GUST_S),), feathers=feathers),
+                           db, method, k)
     view = None
     try:
         cmd = Command()
@@ -113,10 +117,16 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         else:
             start_cruise(fl, ctl.P0, cfg)
             target = CruiseTarget(trim, altitude=cfg.height, speed=cmd.speed)
-        m = fl.model
+        draw = None
+        if fl.dove.modal is not None:
+            from flapsim.bird.modal_feathers import FeatherDrawing
+
+            draw = FeatherDrawing(fl.dove)
+        # what is drawn: the dove's model, or its display copy with bendable feathers (the
+        # same qpos layout)
+        m = fl.model if draw is None else draw.model
         shown = mujoco.MjData(m)
-        shown.qpos[:] = fl.data.qpos
-        mujoco.mj_forward(m, shown)
+        _place(m, shown, fl.data.qpos, draw)
         view = AnimalViewer(m, shown, fl.dove.trunk, distance=1.4, launch=launch)
         items = [Polyline(path.point(np.linspace(0, path.length, 400)))] if path is not None else []
         dt = float(m.opt.timestep)
@@ -159,9 +169,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             t_start = t
             running = True
             for i, q in enumerate(frames):
-                shown.qpos[:] = q
                 shown.time = t_start + (i + 1) * stride * dt
-                mujoco.mj_forward(m, shown)
+                _place(m, shown, q, draw)
                 steer = ("following the path\n-" if path is not None else
                          f"{cmd.turn_rate_deg_s:+.0f} deg/s\n{cmd.climb_deg:+.0f} deg")
                 texts = ("steering\nelevation\nspeed\nwind\nkeys",
@@ -192,6 +201,14 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             "pushes": cmd.pushes, "gusts": cmd.gusts, "events": cmd.events,
             "max_wind_m_s": max_wind,
             "wingbeats": len(headings) - 1}
+
+
+def _place(m: mujoco.MjModel, shown: mujoco.MjData, qpos: np.ndarray, draw) -> None:
+    """Show state ``qpos``: positions, the bent feathers (modal), then ``mj_forward``."""
+    shown.qpos[:] = qpos
+    if draw is not None:
+        draw.apply(shown)
+    mujoco.mj_forward(m, shown)
 
 
 def _dummy_path():

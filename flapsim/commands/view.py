@@ -22,6 +22,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
                    help="regression of the wingbeat controller (default lwlr)")
     p.add_argument("--k", type=int, default=None, help="neighbours (default 0.5%% of the database)")
+    p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
+                   help="rigid feather plates (default) or modal feathers, drawn bent (needs --db: a "
+                        "database trained with flapsim train --feathers modal)")
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -31,6 +34,9 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--seconds must be within 0..86400, got {args.seconds}")
     if args.k is not None and args.k < 1:
         raise InputError(f"--k must be >= 1, got {args.k}")
+    if args.feathers != "rigid" and not args.db:
+        raise InputError("--feathers modal needs --db: a database trained with modal feathers "
+                         "(flapsim train --feathers modal ...); the bundled one is the rigid dove's")
     path = None
     if args.path:
         from flapsim.bird.path import load_path
@@ -39,9 +45,10 @@ def run(args: argparse.Namespace) -> dict:
     check_display()
     from flapsim.bird.viewer import view_flight
 
-    r = view_flight(args.seconds, args.db, args.method, args.k, path)
+    r = view_flight(args.seconds, args.db, args.method, args.k, path, feathers=args.feathers)
     print(f"dove viewer: {r['simulated_s']:.1f} s flown in {r['wall_s']:.1f} s ({r['status']}); "
           f"turned {r['heading_change_deg']:+.0f} deg, climbed {r['altitude_change_m']:+.1f} m, "
           f"{r['distance_m']:.0f} m flown; {len(r['events'])} key commands, {r['pushes']} pushes, "
           f"{r['gusts']} gusts")
-    return {"viewer": r, "path": args.path, "db": args.db or "bundled", "method": args.method}
+    return {"viewer": r, "path": args.path, "db": args.db or "bundled", "method": args.method,
+            "feathers": args.feathers}

@@ -26,6 +26,14 @@ def test_view_without_a_display_is_a_one_line_error(monkeypatch, capsys):
     assert "viewer" in err and len(err.strip().splitlines()) == 1
 
 
+def test_view_with_modal_feathers_needs_a_modal_database(monkeypatch, capsys):
+    # the bundled database is the rigid dove's (a modal one is bound to the modal dove's hash)
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert cli.main(["view", "--feathers", "modal", "--seconds", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--db" in err and len(err.strip().splitlines()) == 1
+
+
 def _bird_pixels(rgb: np.ndarray) -> np.ndarray:
     """Pixels that are neither the sky (blue above red) nor the ground (green above red):
     the dove's warm greys. The scene without the bird has none (sky rgb 0.55 0.70 0.90 ->
