@@ -137,30 +137,38 @@ def trajectory_runner(sc: Scenario, opt: EvalOptions) -> dict:
 
 
 def dive_runner(sc: Scenario, opt: EvalOptions) -> dict:
-    """Waypoints: one below the surface, then one on it."""
+    """Waypoints: one below the surface, then one on it. The swimmer reaches the point
+    below by a surface dive (:class:`flapsim.swim.dive.SurfaceDive`: breathe out, pike,
+    legs up, swim on; breathe in once there). Reached: the head or the pelvis within
+    the waypoint radius of the point; surfaced: the head above the water afterwards."""
+    from flapsim.swim.dive import SurfaceDive
     from flapsim.swim.model import SwimmerParams
     from flapsim.swim.targets import Waypoints
 
     wp = Waypoints(np.asarray(sc.params["waypoints"], dtype=float), sc.params["radius_m"])
-    params = SwimmerParams(lung_volume_l=sc.params.get("lungs_l", 3.0))
-    r, files = _swim(sc, opt, wp, _seconds(sc, opt), params=params)
+    lungs = sc.params.get("lungs_l", 3.0)
+    dive = SurfaceDive(wp, lungs_l=lungs) if opt.layers != "basic" else None
+    r, files = _swim(sc, opt, wp, _seconds(sc, opt), params=SwimmerParams(lung_volume_l=lungs),
+                     control_hook=dive)
     m = _metrics(r)
     depth = float((r.com[:, 2] - r.water_level).min())
     head = r.head[:, 2] - r.water_level
-    reached = wp.reached
+    reached = dive.events["reached"] if dive is not None else None
     surfaced = None
-    if reached[0] is not None:
-        after = np.flatnonzero((r.times > reached[0]) & (head > 0.0))
+    if reached is not None:
+        after = np.flatnonzero((r.times > reached) & (head > 0.0))
         surfaced = float(r.times[after[0]]) if len(after) else None
-    m.update(deepest_com_m=depth, below_reached_s=reached[0],
-             surface_point_reached_s=reached[-1] if len(reached) > 1 else None,
+    m.update(deepest_com_m=depth, deepest_head_m=float(head.min()), below_reached_s=reached,
+             closest_to_point_below_m=dive.closest_m if dive is not None else None,
+             dive_started_s=dive.events["dive"] if dive is not None else None,
+             surface_point_reached_s=wp.reached[-1] if len(wp.reached) > 1 else None,
              head_resurfaced_s=surfaced, target_depth_m=float(wp.points[0, 2]))
-    ok = reached[0] is not None and surfaced is not None
+    ok = reached is not None and surfaced is not None
     if opt.quick:
         return {"status": "completed", "ok": True, "reason": "quick run", "metrics": m,
                 "files": files}
     reason = "" if ok else (f"the point {abs(wp.points[0, 2]):g} m down was not reached "
-                            f"(deepest centre of mass {depth:+.2f} m)" if reached[0] is None
+                            f"(deepest head {head.min():+.2f} m)" if reached is None
                             else "reached the point below but did not surface again")
     return {"status": "completed" if ok else "lost", "ok": ok, "reason": reason, "metrics": m,
             "files": files}
@@ -241,7 +249,8 @@ register(Scenario(
 
 register(Scenario(
     name="swim-dive", family="swim",
-    summary="breaststroke to a point 2 m below the surface 8 m ahead, then up to the surface",
+    summary="breaststroke surface dive to a point 2 m below the surface 8 m ahead (head or pelvis "
+            "within 0.75 m), then up to the surface",
     runner=dive_runner,
     params={"stroke": "breaststroke", "waypoints": ((8.0, 0.0, -2.0), (16.0, 0.0, 0.0)),
             "radius_m": 0.75, "seconds": 60.0, "quick_seconds": 4.0},

@@ -42,9 +42,6 @@ from flapsim.errors import InputError
 from flapsim.swim.layers import BasicStrokeLayer
 
 RULES = ("palm", "reach")
-#: while the per-cycle layer's yaw weight is w, at most 1 - TURN_SLOWDOWN w of the force
-#: along d is wanted (negative: less force, the palms slice)
-TURN_SLOWDOWN = 1.5
 
 
 @dataclass(frozen=True)
@@ -65,6 +62,18 @@ class HandRuleParams:
     #: the rules act only where the flow is clearly with or against the desired
     #: direction: strength (|c| - c0) / (1 - c0), c0 = this [-]
     min_alignment: float = 0.0
+    #: prone strokes with a target: while the per-cycle layer's yaw weight is w, at most
+    #: 1 - turn_slowdown w of the force along d is wanted (negative: the palms slice, a
+    #: slower swimmer turns in a smaller circle). Coupled to a once-a-cycle weight it
+    #: pulses on the 5 m figure of eight (brake and turn ~15 deg/s, then sprint straight,
+    #: ~0 deg/s, every ~10 s); without it the chases lose (moving target 3.18 m > 3 m)
+    turn_slowdown: float = 1.5
+    #: prone strokes: the reach rule's strength times 1 - tuck_in_turns w (arms kept in
+    #: while the per-cycle layer turns). Measured, not on by default: reaching out adds
+    #: no speed to the crawl but damps its yaw (12.2 -> 9.7 deg/s at full yaw weight);
+    #: tucking helps the breaststroke's 5 m figure of eight (0.26 -> 0.19 m) but costs
+    #: the chases a little (cross current 1.59 -> 1.79 m, trajectory 3.64 -> 4.14 m)
+    tuck_in_turns: float = 0.0
 
 
 class HandRules:
@@ -106,7 +115,7 @@ class HandRules:
         self.t_last: float | None = None
         #: how much force along d is wanted, -1..1 (1; prone strokes with a target: the
         #: cosine of the angle between the body line and the target's direction, and at
-        #: most 1 - TURN_SLOWDOWN w, w the per-cycle layer's yaw weight this cycle)
+        #: most 1 - turn_slowdown w, w the per-cycle layer's yaw weight this cycle)
         self.need = 1.0
         #: the per-cycle layer (its yaw weights), if any: set by whoever stacks the layers
         self.cycle = None
@@ -128,6 +137,8 @@ class HandRules:
         com = data.subtree_com[self.root].copy()
         t = float(data.time)
         self.need = 1.0
+        #: the reach rule's share while turning (prone: 1 - tuck_in_turns w)
+        self.reach_scale = 1.0
         if self.basic.stroke.posture == "prone":
             line = data.xpos[self.head] - data.xpos[self.root]
             h = math.atan2(line[1], line[0])
@@ -137,9 +148,11 @@ class HandRules:
                 self.need = math.cos(aim - h)
                 cyc = self.cycle
                 if cyc is not None and cyc.weights:  # ... and less while the per-cycle
-                    # layer turns hard (a slower swimmer turns in a smaller circle)
+                    # layer turns hard (turn_slowdown; arms in: tuck_in_turns)
                     w = max(cyc.weights.get("yaw_left", 0.0), cyc.weights.get("yaw_right", 0.0))
-                    self.need = min(self.need, 1.0 - TURN_SLOWDOWN * w)
+                    if self.params.turn_slowdown > 0:
+                        self.need = min(self.need, 1.0 - self.params.turn_slowdown * w)
+                    self.reach_scale = max(0.0, 1.0 - self.params.tuck_in_turns * w)
         elif self.target is None:
             return None
         else:
@@ -177,8 +190,8 @@ class HandRules:
                         want[:2] = self._palm(data, h, u, c, target)
                         palm_on = True
                     if "reach" in self.rules:
-                        want[2] = -math.radians(p.reach_max_deg) * math.copysign(
-                            self._strength(c), c)
+                        want[2] = -math.radians(p.reach_max_deg) * self.reach_scale * \
+                            math.copysign(self._strength(c), c)
             if palm_on:  # integral: want holds the new palm offsets
                 h["off"][:2] = want[:2]
             else:
