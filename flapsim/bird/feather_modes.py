@@ -65,8 +65,14 @@ class ModalParams:
     """Poisson ratio of the shell: twist GJ = 2 (1 - nu) EI (assumed, keratin ~0.3)."""
     density: float = 165.0
     """Shell density, kg/m^3 (paper); sets only the reported thickness (mass comes from the model)."""
-    modes: int = 4
-    """Modes per feather (paper: 4)."""
+    modes: int = 1
+    """Modes per feather (paper: 4). One by default: in the base controller's flight the
+    first mode carries the feathers' bending (RMS shaft-tip deflection of every feather:
+    modes 2-4 add 0.6 %, 0.2 % and 0.07 % of it; their elastic tip twist, 0.16 deg RMS, is
+    negligible next to the primaries' hinge twist of ~35 deg), and lift/weight changes by
+    0.1 % (0.9672 with 4 modes, 0.9661 with 1); each mode is a body and a DOF per feather in
+    MuJoCo, and 4 modes cost 3x the rigid bare step, 1 mode 1.6x
+    (``scripts/dove_feather_participation.py``). ``modes=4`` is the paper's reduction."""
     damping_ratio: float = 0.02
     """Structural damping ratio of every mode: half the loss factor of keratin (~0.04,
     assumed; feathers vibrate with ~2-5 % damping ratios in still air, aerodynamic damping
