@@ -62,7 +62,7 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
     providers are registered on it, so nothing is simulated here). Frames stream to the
     file (memory stays bounded); ``progress`` shows a bar (tqdm, on stderr).
     ``before_frame(data, renderer)``, if given, runs after each frame's ``mj_forward``: e.g. to
-    deform meshes (:class:`flapsim.bird.modal_feathers.MeshDeformer`).
+    place bent feathers (:class:`flapsim.bird.modal_feathers.FeatherDrawing`).
     """
     frames = np.asarray(qpos_frames, dtype=float)
     if frames.ndim != 2 or frames.shape[1] != model.nq:

@@ -542,11 +542,13 @@ def contiguous_prefix(chunks: list[tuple[int, int, int]]) -> list[tuple[int, int
     return out
 
 
-def finalize_database(path: str | os.PathLike, n_samples: int | None = None) -> Database:
+def finalize_database(path: str | os.PathLike, n_samples: int | None = None,
+                      float32: bool = False) -> Database:
     """Rewrite a journal as a finished database: the first ``n_samples`` accepted
     samples by index (all of the gap-free prefix of chunks when ``None``), in index
     order, in one record; the rejected counts of the chunks used. Written to a
-    temporary file and renamed over ``path``."""
+    temporary file and renamed over ``path``. ``float32``: store float fields in single
+    precision (half the size; the journal keeps double, so a resumed run is unchanged)."""
     path = Path(path)
     header, records, _, torn = _scan(path, _read_bytes(path))
     db = _assemble(path, header, records, torn)
@@ -571,11 +573,14 @@ def finalize_database(path: str | os.PathLike, n_samples: int | None = None) -> 
     if index.size and index[-1] >= examined:  # only possible with a gap: never past the prefix
         raise InputError(f"{path}: samples beyond the complete chunks")
     arrays = {k: v[:keep] for k, v in db.arrays.items()}
+    fin = {k: v for k, v in header.items() if k not in ("samples", "examined")}
+    if float32:
+        arrays = {k: v.astype("<f4") if v.dtype.kind == "f" else v for k, v in arrays.items()}
+        fin["fields"] = fields_spec(arrays)
     rejected: dict[str, int] = {}
     for d, _, _ in records:
         if d["stop"] <= examined:
             for k, v in d["rejected"].items():
                 rejected[k] = rejected.get(k, 0) + v
-    fin = {k: v for k, v in header.items() if k not in ("samples", "examined")}
     _write_final(path, fin, index, arrays, rejected, examined)
     return load_database(path)

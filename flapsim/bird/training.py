@@ -148,13 +148,14 @@ def _summary(db: Any, out: Path, *, wall: float, new: int, before: int, startup:
 
 def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, workers: int = 1,
           backend: str = "local", address: str | None = None, chunk_size: int | None = None,
-          progress: bool = True, kind: str = DEFAULT_KIND) -> dict:
+          progress: bool = True, kind: str = DEFAULT_KIND, float32: bool = False) -> dict:
     """Create or resume the database ``out`` until it holds the first ``n_samples``
     accepted samples of ``worker_cls(config)``, then finalize it. Returns a summary:
     samples, examined, rejected (by reason), wall_s, samples_per_s, workers, backend, ...
 
     ``chunk_size``: samples per chunk (default: the journal's, else
-    :data:`DEFAULT_CHUNK_SIZE`). ``progress``: a tqdm bar on stderr.
+    :data:`DEFAULT_CHUNK_SIZE`). ``progress``: a tqdm bar on stderr. ``float32``: the
+    finished file stores its samples in single precision (half the size).
     """
     t0 = time.perf_counter()
     out = Path(out)
@@ -194,7 +195,7 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
     if before < n_samples:
         startup = _run(config, out, n_samples, worker_cls, workers, backend, address,
                        chunk_size, progress, ident, existing, done, prefix)
-    db = finalize_database(out, n_samples)
+    db = finalize_database(out, n_samples, float32=float32)
     summary = _summary(db, out, wall=time.perf_counter() - t0, new=max(0, db.n - before),
                        before=before, startup=startup, workers=workers, backend=backend,
                        address=address, already=False)

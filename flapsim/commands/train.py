@@ -54,8 +54,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--chunk-size", type=int, default=None, metavar="C",
                    help="samples per work unit (default 16, or the resumed file's)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
-                   help="phase 1: the dove's feathers, rigid (default) or modal (bending; ~2.6x "
+                   help="phase 1: the dove's feathers, rigid (default) or modal (bending; ~1.7x "
                         "slower); the database only serves a dove with the same feathers")
+    p.add_argument("--float32", action="store_true",
+                   help="store the finished database's samples in single precision (half the "
+                        "size: the bundled database is stored so)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -188,7 +191,8 @@ def train_from_args(args: argparse.Namespace, config: Any, worker_cls: type, kin
     s = train(config, out or args.out, n_samples or args.samples, worker_cls, workers=workers,
               backend=args.backend,
               address=args.address, chunk_size=args.chunk_size,
-              progress=not getattr(args, "no_progress", False), kind=kind)
+              progress=not getattr(args, "no_progress", False), kind=kind,
+              float32=getattr(args, "float32", False))
     rej = ", ".join(f"{k} {v}" for k, v in s["rejected"].items()) or "none"
     if s["already_complete"]:
         print(f"{s['out']} is already complete: {s['samples']} samples ({s['examined']} examined, "

@@ -11,6 +11,7 @@ from flapsim.bird.database import (
     MAGIC,
     SCHEMA_VERSION,
     DatabaseWriter,
+    canonical_json,
     fields_spec,
     finalize_database,
     load_database,
@@ -78,6 +79,24 @@ def test_finalize_keeps_the_first_n_of_the_gap_free_prefix(tmp_path):
     assert db.n == 10 and db.header["samples"] == 10 and db.header["examined"] == 20
     np.testing.assert_array_equal(db.index, np.concatenate([res[0].index, res[1].index])[:10])
     assert sum(db.rejected.values()) == 20 - len(res[0].index) - len(res[1].index)
+
+
+def test_float32_finalize_halves_the_samples_and_rounds_them(tmp_path):
+    res = _chunks(4)
+    _journal(tmp_path / "d.db", res)
+    _journal(tmp_path / "s.db", res)
+    d = finalize_database(tmp_path / "d.db")
+    f = finalize_database(tmp_path / "s.db", float32=True)
+    assert [x["dtype"] for x in f.header["fields"]] == ["<f4", "<f4"]
+    for k in ("x", "y"):
+        assert f.arrays[k].dtype == np.float32
+        # exactly the double samples rounded to the nearest single
+        np.testing.assert_array_equal(f.arrays[k], d.arrays[k].astype(np.float32))
+    np.testing.assert_array_equal(f.index, d.index)
+    # the sample payload is 4 of 8 bytes per number; index, header and framing are not
+    n_numbers = sum(a.size for a in d.arrays.values())
+    size = (tmp_path / "d.db").stat().st_size - (tmp_path / "s.db").stat().st_size
+    assert size == 4 * n_numbers + len(canonical_json(d.header)) - len(canonical_json(f.header))
 
 
 @pytest.mark.parametrize("cut", [1, 7, 16, 40])
