@@ -15,9 +15,10 @@ depth; towards the target for treading water) can push the swimmer that way
 whose ``v_rel`` points against ``d`` holds it back (``c < 0``: less force wanted:
 slice, fold in). The rules scale with ``|c|``.
 
-The palm's normal is the hand box's thin (local y) axis. The palm rule asks for the
-normal ``n*``: along ``v_rel`` (the nearer face) to face the flow, ``n`` with its
-``v_rel`` part removed to slice; the turns of the forearm rotation (elbow pronation)
+The palm's normal ``n`` is the hand box's thin (local y) axis, outward from the palm
+(:data:`PALM_SIDE`). The palm rule asks for the normal ``n*``: ``-v_rel`` (the palm,
+not the back of the hand, faces the water coming at it) to face the flow, ``n`` with
+its ``v_rel`` part removed to slice; the turns of the forearm rotation (elbow pronation)
 and the wrist that bring ``n`` towards ``n*`` come from the two joints' axes (damped
 least squares on ``d n = sum_j (a_j x n) d theta_j``) and are integrated into the two
 joints' offsets from the stroke's pose (``palm_gain`` of the remaining turn per update,
@@ -33,7 +34,7 @@ of the water (no flow force) or in a weak flow relax their offsets.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import mujoco
 import numpy as np
@@ -42,6 +43,15 @@ from flapsim.errors import InputError
 from flapsim.swim.layers import BasicStrokeLayer
 
 RULES = ("palm", "reach")
+#: the palm's outward normal is the hand box's local y axis times this (the boxes are
+#: mirrored): on the crawl's basic stroke the pull's relative flow has
+#: y . v_rel/|v_rel| = +0.65 at the left hand and -0.63 at the right (speed-weighted,
+#: tests/swim/test_continuous.py), and a pulling palm faces the water
+#: coming at it
+PALM_SIDE = {"l": -1.0, "r": 1.0}
+#: version of the hand rules' behaviour in still water, stored with the per-cycle
+#: calibration tables made with them (2: the palm, not the nearer face, faces the flow)
+RULES_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -58,22 +68,35 @@ class HandRuleParams:
     #: where the rules rest [s]
     smooth_s: float = 0.06
     #: fraction of the palm's remaining turn added to its offsets per update [-]
-    palm_gain: float = 0.3
+    palm_gain: float = 0.1
     #: the rules act only where the flow is clearly with or against the desired
     #: direction: strength (|c| - c0) / (1 - c0), c0 = this [-]
     min_alignment: float = 0.0
     #: prone strokes with a target: while the per-cycle layer's yaw weight is w, at most
     #: 1 - turn_slowdown w of the force along d is wanted (negative: the palms slice, a
-    #: slower swimmer turns in a smaller circle). Coupled to a once-a-cycle weight it
-    #: pulses on the 5 m figure of eight (brake and turn ~15 deg/s, then sprint straight,
-    #: ~0 deg/s, every ~10 s); without it the chases lose (moving target 3.18 m > 3 m)
-    turn_slowdown: float = 1.5
+    #: slower swimmer turns in a smaller circle). Off by default: coupled to a
+    #: once-a-cycle weight it pulses on the 5 m figure of eight (brake and turn, then
+    #: sprint straight, every ~10 s); curvature_slowdown replaces it
+    turn_slowdown: float = 0.0
+    #: prone strokes with a target, continuously: pure pursuit to an aim point L ahead
+    #: at bearing e asks for the curvature 2 sin|e| / L; the stroke turns at most W (its
+    #: per-cycle table's largest yaw turn per cycle at this speed x the stroke rate), so
+    #: speeds up to v_ok = W / curvature can follow the aim. Above v_ok at most
+    #: 1 - k (v / v_ok - 1) of the force along d is wanted, k = this (2: the rules are
+    #: neutral at 1.5 v_ok, the palms slice and the arms fold fully at 2 v_ok); 0: off
+    curvature_slowdown: float = 2.0
     #: prone strokes: the reach rule's strength times 1 - tuck_in_turns w (arms kept in
     #: while the per-cycle layer turns). Measured, not on by default: reaching out adds
     #: no speed to the crawl but damps its yaw (12.2 -> 9.7 deg/s at full yaw weight);
     #: tucking helps the breaststroke's 5 m figure of eight (0.26 -> 0.19 m) but costs
     #: the chases a little (cross current 1.59 -> 1.79 m, trajectory 3.64 -> 4.14 m)
     tuck_in_turns: float = 0.0
+
+
+def calibration_settings() -> dict:
+    """What the per-cycle calibration's "all" tables depend on: the rules' version and
+    the default settings (stored in a table's provenance, checked when it is loaded)."""
+    return {"version": RULES_VERSION, **asdict(HandRuleParams())}
 
 
 class HandRules:
@@ -147,6 +170,9 @@ class HandRules:
                 aim = self.target.heading(com[:2], data.subtree_linvel[self.root][:2].copy(), t)
                 self.need = math.cos(aim - h)
                 cyc = self.cycle
+                if cyc is not None and self.params.curvature_slowdown > 0:  # ... and less
+                    # while the aim asks for a sharper turn than the stroke can make
+                    self.need = min(self.need, self._curvature_need(data, com, aim - h, t))
                 if cyc is not None and cyc.weights:  # ... and less while the per-cycle
                     # layer turns hard (turn_slowdown; arms in: tuck_in_turns)
                     w = max(cyc.weights.get("yaw_left", 0.0), cyc.weights.get("yaw_right", 0.0))
@@ -159,6 +185,29 @@ class HandRules:
             h = self.target.heading(com[:2], data.subtree_linvel[self.root][:2].copy(), t)
         e = self.target.elevation(com, t) if getattr(self.target, "is_3d", False) else 0.0
         return np.array([math.cos(e) * math.cos(h), math.cos(e) * math.sin(h), math.sin(e)])
+
+    def _curvature_need(self, data: mujoco.MjData, com: np.ndarray, err: float, t: float) -> float:
+        """Forward force wanted [-1, 1] so that the aim's turn stays within the stroke's
+        turn rate (:attr:`HandRuleParams.curvature_slowdown`). The aim point is the
+        target's look-ahead away (paths) or the target itself (points, trajectories)."""
+        tgt = self.target
+        if hasattr(tgt, "lookahead"):
+            dist = float(tgt.lookahead)
+        elif hasattr(tgt, "position"):
+            dist = float(np.linalg.norm(np.asarray(tgt.position(t))[:2] - com[:2]))
+        else:
+            return 1.0
+        kappa = 2.0 * abs(math.sin(err)) / max(dist, 0.5)
+        table = getattr(self.cycle, "table", None)
+        name = "yaw_left" if math.sin(err) > 0 else "yaw_right"
+        if kappa < 1e-6 or table is None or name not in table.angles:
+            return 1.0
+        v = float(np.linalg.norm(data.subtree_linvel[self.root][:2]))
+        rate = float(np.max(table.angle_curve(name, v))) * self.basic.rate_hz  # [rad/s]
+        v_ok = rate / kappa
+        if v <= v_ok:
+            return 1.0
+        return max(-1.0, 1.0 - self.params.curvature_slowdown * (v / v_ok - 1.0))
 
     def update(self, data: mujoco.MjData) -> None:
         sw = self.basic.swimmer
@@ -211,9 +260,9 @@ class HandRules:
               target: np.ndarray) -> np.ndarray:
         """New offsets [rad] of forearm rotation and wrist from the stroke's targets:
         the present ones plus a part of the turn towards the rule's normal."""
-        n = data.geom_xmat[h["geom"]].reshape(3, 3)[:, 1]
-        if c > 0:  # face the flow: the nearer face's normal along the flow
-            goal = u if n @ u >= 0 else -u
+        n = data.geom_xmat[h["geom"]].reshape(3, 3)[:, 1] * PALM_SIDE[h["side"]]
+        if c > 0:  # face the flow: the palm's normal against the water coming at it
+            goal = -u
         else:  # slice: the normal across the flow
             goal = n - (n @ u) * u
             norm = float(np.linalg.norm(goal))

@@ -42,6 +42,7 @@ import numpy as np
 
 from flapsim.errors import DataFileError, InputError
 from flapsim.io import write_json
+from flapsim.swim.continuous import calibration_settings
 from flapsim.swim.feedback import wrap_angle
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams
@@ -189,6 +190,10 @@ def load_table(stroke: Stroke, path: str | Path | None = None, check: bool = Tru
     if check and table.provenance.get("stroke_sha256") != stroke_hash(stroke):
         raise DataFileError(f"{p} was calibrated for another version of {stroke.path}; "
                             f"recalibrate: {cmd}")
+    made = (table.provenance.get("config") or {}).get("hand_rules")
+    if check and layers == "all" and made != calibration_settings():
+        raise DataFileError(f"{p}: its 'all' table was made with other continuous-layer rules "
+                            f"({made}); recalibrate: {cmd}")
     return table
 
 
@@ -298,6 +303,9 @@ class CalibrationConfig:
     #: the layer modes calibrated: "cycle" (basic stroke + sequence) and "all" (the
     #: continuous layer's hand rules and feedback rules running as well)
     layers: tuple = ("cycle", "all")
+    #: the continuous layer's settings the "all" tables are made with
+    #: (:func:`flapsim.swim.continuous.calibration_settings`)
+    hand_rules: dict = field(default_factory=lambda: calibration_settings())
 
     def sequences(self) -> list[str]:
         return [n for n in CYCLE_SEQUENCES if n in load_stroke(self.stroke).cycle]

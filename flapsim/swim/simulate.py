@@ -289,6 +289,7 @@ def swim(
     layers: str | None = None,
     rules: tuple[str, ...] | None = None,
     cycle_table: object | None = None,
+    hand_params: object | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
@@ -301,7 +302,8 @@ def swim(
     :mod:`flapsim.swim.continuous`) and the stroke's feedback rules (its
     ``[perturb.*]`` sections: treading water's balance) at 50 Hz. ``feedback=False``
     (older API) means "basic". ``cycle_table``: a :class:`flapsim.swim.cycle.CycleTable`
-    instead of the stroke's own.
+    instead of the stroke's own. ``hand_params``: a
+    :class:`flapsim.swim.continuous.HandRuleParams` instead of the defaults.
     ``target``: a heading, a point (with a depth: 3D), waypoints, a timed trajectory or
     a path (flapsim.swim.targets).
     ``control_hook(swimmer, layer)`` runs at every control step (50 Hz) after the
@@ -338,7 +340,7 @@ def swim(
                 raise
             log.warning("stroke %s has no per-cycle calibration table: the per-cycle layer is "
                         "off", st.name)
-    hands = HandRules(layer, target, RULES if rules is None else tuple(rules)) \
+    hands = HandRules(layer, target, RULES if rules is None else tuple(rules), hand_params) \
         if (rules is None or len(rules)) else None
     if hands is not None:
         hands.cycle = cyc
