@@ -149,7 +149,7 @@ def test_per_cycle_layer_turns_towards_the_target_side():
 
 def test_palm_rule_moves_treading_towards_a_target():
     # the paper's Fig. 13: treading water (with its balance rules) towards a target 10 m
-    # ahead for 10 s; measured forward displacement 0.03 m without, 0.63 m with the palm
+    # ahead for 10 s; measured forward displacement 0.03 m without, 0.42 m with the palm
     # rule (the palms then face the water as it flows forwards past them)
     def forward(rules):
         r = swim("treading", 10.0, target=Point(10.0, 0.0), layers="all", rules=rules)
@@ -159,7 +159,7 @@ def test_palm_rule_moves_treading_towards_a_target():
 
 
 def test_palm_and_reach_speed_up_the_crawl():
-    # measured over 12 s: 0.96 m/s (basic + per-cycle), 1.03 m/s with both hand rules
+    # measured over 12 s: 0.96 m/s (basic + per-cycle), 1.01 m/s with both hand rules
     cycle = swim("crawl", 12.0, layers="cycle").summary()
     full = swim("crawl", 12.0, layers="all").summary()
     assert full["speed_m_s"] > cycle["speed_m_s"] + 0.03
