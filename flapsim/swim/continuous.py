@@ -52,6 +52,9 @@ PALM_SIDE = {"l": -1.0, "r": 1.0}
 #: version of the hand rules' behaviour in still water, stored with the per-cycle
 #: calibration tables made with them (2: the palm, not the nearer face, faces the flow)
 RULES_VERSION = 2
+#: the HandRuleParams that act while calibrating (still water, no target)
+STILL_WATER_SETTINGS = ("palm_max_deg", "reach_max_deg", "min_flow", "smooth_s", "palm_gain",
+                        "min_alignment")
 
 
 @dataclass(frozen=True)
@@ -95,8 +98,10 @@ class HandRuleParams:
 
 def calibration_settings() -> dict:
     """What the per-cycle calibration's "all" tables depend on: the rules' version and
-    the default settings (stored in a table's provenance, checked when it is loaded)."""
-    return {"version": RULES_VERSION, **asdict(HandRuleParams())}
+    the default settings that act in still water without a target (stored in a table's
+    provenance, checked when it is loaded)."""
+    p = asdict(HandRuleParams())
+    return {"version": RULES_VERSION, **{k: p[k] for k in STILL_WATER_SETTINGS}}
 
 
 class HandRules:
