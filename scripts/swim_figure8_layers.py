@@ -2,7 +2,7 @@
 continuous-layer settings of your choice.
 
     python scripts/swim_figure8_layers.py --stroke crawl --radius 5 --layers cycle,all \
-        --set turn_gain=0.5 --set turn_slowdown=0
+        --set curvature_slowdown=0 --set turn_slowdown=1.5
 
 Prints, per run, the mean / max distance from the path [m], the fraction completed,
 the distance swum and the time to complete (as ``flapsim eval`` reports them).

@@ -13,7 +13,10 @@ v_hand``, so a hand whose ``v_rel`` points along the desired direction ``d``
 depth; towards the target for treading water) can push the swimmer that way
 (``c = v_rel . d / |v_rel| > 0``: more force wanted: face the flow, reach out), and one
 whose ``v_rel`` points against ``d`` holds it back (``c < 0``: less force wanted:
-slice, fold in). The rules scale with ``|c|``.
+slice, fold in). The rules scale with ``|c|``. With a target, ``d`` is scaled by how much
+forward force is wanted (:attr:`HandRules.need`): the cosine of the aim's bearing, and,
+continuously, less where the aim asks for a sharper turn than the stroke can make
+(:attr:`HandRuleParams.curvature_slowdown`; the slower swimmer turns in a smaller circle).
 
 The palm's normal ``n`` is the hand box's thin (local y) axis, outward from the palm
 (:data:`PALM_SIDE`). The palm rule asks for the normal ``n*``: ``-v_rel`` (the palm,
@@ -142,8 +145,10 @@ class HandRules:
                                "off": np.zeros(3)})
         self.t_last: float | None = None
         #: how much force along d is wanted, -1..1 (1; prone strokes with a target: the
-        #: cosine of the angle between the body line and the target's direction, and at
-        #: most 1 - turn_slowdown w, w the per-cycle layer's yaw weight this cycle)
+        #: cosine of the angle between the body line and the target's direction, less
+        #: where the aim asks for a sharper turn than the stroke can make
+        #: (curvature_slowdown), and at most 1 - turn_slowdown w, w the per-cycle layer's
+        #: yaw weight this cycle)
         self.need = 1.0
         #: the per-cycle layer (its yaw weights), if any: set by whoever stacks the layers
         self.cycle = None
