@@ -882,7 +882,11 @@ class Dove:
     def hash(self) -> str:
         """Short hash of the model (provenance in result files)."""
         h = hashlib.sha256()
-        for a in (self.model.body_mass, self.model.body_pos, self.model.mesh_vert,
-                  self.model.jnt_axis, self.model.actuator_biasprm):
+        m = self.model
+        # what a trained database depends on: geometry, inertia, joints and their limits,
+        # servos and their torque limits, springs and dampers, the timestep
+        for a in (m.body_mass, m.body_pos, m.mesh_vert, m.jnt_axis, m.actuator_biasprm,
+                  m.actuator_gainprm, m.actuator_forcerange, m.jnt_range, m.jnt_stiffness,
+                  m.dof_damping, np.array([m.opt.timestep])):
             h.update(np.ascontiguousarray(a).tobytes())
         return h.hexdigest()[:12]

@@ -84,11 +84,11 @@ def test_drawn_feathers_follow_the_imposed_modal_deflection(dove, drawing):
         assert np.allclose(other, _mesh_vertices_world(dove.model, dp, "l_s3"), atol=1e-9)
 
 
-def test_a_video_frame_shows_the_bend(dove, drawing, tmp_path):
-    """dove_video's drawing of a rest frame and of every feather bent by its first mode:
-    the rest frame is the rigid meshes' picture, the bent one is not."""
-    pytest.importorskip("imageio")
-
+def _render_rest_and_bent(out: str) -> None:
+    """Render the rigid dove at rest, the video model at rest and bent (every feather by its
+    first mode) and save the three images to ``out`` (.npz)."""
+    dove = Dove.load(feathers="modal")
+    drawing = FeatherDrawing(dove)
     model, hook = video_model(dove)
     qpos = dove.model.qpos0.copy()
     bent = qpos.copy()
@@ -110,9 +110,31 @@ def test_a_video_frame_shows_the_bend(dove, drawing, tmp_path):
             if h is not None:
                 h(dd, r)
             r.update_scene(dd, cam)
-            images.append(r.render().astype(int))
+            images.append(r.render().astype(np.int16))
         finally:
             r.close()
+    np.savez(out, *images)
+
+
+def test_a_video_frame_shows_the_bend(tmp_path):
+    """dove_video's drawing of a rest frame and of every feather bent by its first mode:
+    the rest frame is the rigid meshes' picture, the bent one is not. Rendered in a child
+    process: a MuJoCo EGL renderer in the test process would be killed by the next pyvista
+    window to close (PITFALLS: the shared EGL display), failing later rendering tests."""
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("imageio")
+    out = tmp_path / "frames.npz"
+    code = (f"import sys; sys.path.insert(0, {str(os.path.dirname(__file__))!r}); "
+            f"import test_modal_drawing as t; t._render_rest_and_bent({str(out)!r})")
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    with np.load(out) as z:
+        images = [z[f"arr_{k}"].astype(int) for k in range(3)]
     rigid, rest, bent_img = images
     changed = lambda a, b: np.any(np.abs(a - b) > 30, axis=-1)  # noqa: E731
     # the flexes rasterize the meshes' triangles (a few hundred edge pixels differ in shading:

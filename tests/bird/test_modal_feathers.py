@@ -12,7 +12,7 @@ from flapsim.bird.modal_feathers import ModalFeathers, clamped_feather_xml, dove
 from flapsim.bird.model import Dove, DoveParams, _Inertia, _inertial_xml
 from flapsim.fluid.coefficients import get_table
 
-RIGID_HASH = "922b1bc90eae"  # the bundled controller database is bound to it
+RIGID_HASH = "ff4b126f5b0b"  # the bundled controller database is bound to it
 FOUR = ModalParams(modes=4)  # the paper's reduction: the dove flies 1 mode (see ModalParams.modes)
 
 

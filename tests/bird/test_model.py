@@ -147,3 +147,23 @@ def test_tail_is_one_fan_that_spreads_with_uniform_spacing():
     assert np.diff(left) == pytest.approx(np.full(n - 1, spacing), abs=1e-4)
     assert 2 * left[0] == pytest.approx(spacing, abs=1e-4)  # the central pair
     assert right == pytest.approx(left, abs=1e-9)  # mirror-symmetric fan
+
+
+@pytest.mark.parametrize("edit", ["torque", "range", "timestep"])
+def test_model_hash_changes_with_what_a_database_depends_on(edit):
+    import dataclasses
+
+    p = DoveParams.load()
+    same = Dove.from_params(p).hash()
+    assert Dove.from_params(DoveParams.load()).hash() == same  # deterministic
+    if edit == "torque":  # a servo's torque limit decides which wingbeats a database holds
+        lim = list(p.dof_torque_limit)
+        lim[0] = (lim[0][0] * 1.1, lim[0][1])
+        q = dataclasses.replace(p, dof_torque_limit=tuple(lim))
+    elif edit == "range":
+        rng = list(p.dof_range_deg)
+        rng[1] = (rng[1][0] - 1.0, rng[1][1])
+        q = dataclasses.replace(p, dof_range_deg=tuple(rng))
+    else:
+        q = dataclasses.replace(p, timestep=p.timestep / 2)
+    assert Dove.from_params(q).hash() != same
