@@ -50,7 +50,6 @@ from flapsim.fluid.coefficients import CoefficientTable
 from flapsim.fluid.flow import FlowField, flow_at
 from flapsim.fluid.surfaces import plate_force, pseudo_angle_tables
 from flapsim.sim.callbacks import CompiledProvider, Registration, register, register_kernel, time_view
-from flapsim.sim.wrench import add_force
 
 FI = 10  # ints per feather
 REC = 16  # floats recorded per triangle (force 3, point 3, normal 3, area 1, spare)
@@ -200,13 +199,41 @@ def _v(a) -> str:
     return " ".join(f"{x:.12g}" for x in np.asarray(a, float).ravel())
 
 
-@njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
-def warp(K, ff, fo, grid, go, nst, sub, q, vst, vx, voff, nv, out, wo):
-    """Modal warping of one feather: body-frame vertex positions and their Jacobians.
+FASTMATH = {"contract", "arcp", "afn", "nsz"}
 
-    ``out[(v) * 3 * (1 + K) + 3 * j + c]``: j = 0 the position, j = 1 + k the derivative by
-    mode k; ``out[wo:wo + 3 (1 + K)]`` is work space. ``ff[fo:]`` holds root, shaft, chord,
-    normal, length. ``q`` (K,) coordinates.
+# Taylor coefficients of sin and cos: for |a| < 1/2 the first omitted terms are below 2.3e-17
+# (sin, through a^13) and 7.3e-19 (cos, through a^14), under half an ulp of the result
+_S3, _S5, _S7, _S9, _S11, _S13 = (-1 / 6, 1 / 120, -1 / 5040, 1 / 362880, -1 / 39916800,
+                                  1 / 6227020800)
+_C2, _C4, _C6, _C8, _C10, _C12, _C14 = (-1 / 2, 1 / 24, -1 / 720, 1 / 40320, -1 / 3628800,
+                                        1 / 479001600, -1 / 87178291200)
+
+
+@njit(cache=True, inline="always", fastmath=FASTMATH)
+def _cos_sin(a):
+    """(cos a, sin a): a polynomial for |a| < 1/2 (the bends and twists of flight; to the
+    last bit of libm's, see ``tests/bird/test_modal_kernel.py``), libm beyond."""
+    if -0.5 < a < 0.5:
+        a2 = a * a
+        s = a * (1.0 + a2 * (_S3 + a2 * (_S5 + a2 * (_S7 + a2 * (_S9 + a2 * (_S11 + a2 * _S13))))))
+        c = 1.0 + a2 * (_C2 + a2 * (_C4 + a2 * (_C6 + a2 * (_C8 + a2 * (_C10 + a2 * (_C12
+                                                                                  + a2 * _C14))))))
+        return c, s
+    return np.cos(a), np.sin(a)
+
+
+@njit(cache=True, inline="always", fastmath=FASTMATH)
+def _stations(K, ff, fo, grid, go, nst, sub, q, qo, buf, bo):
+    """Modal warping of one feather's shaft, station by station.
+
+    ``buf[bo + (6 + 6 K) j:]`` for station j: the centreline ``C`` (3, from the root), the
+    bent and twisted chord ``c'`` (3), then per mode k ``dC/dq_k`` (3) and ``dc'/dq_k`` (3);
+    ``buf[bo + (6 + 6 K) nst:][:3 K]`` is work space. ``ff[fo:]`` holds root, shaft, chord,
+    normal, length; ``q[qo:qo + K]`` the coordinates. The shaft section at grid point g is
+    rotated by the bend angle ``beta_g = sum_k q_k slope_gk`` about the chord, the chord by the
+    twist ``tau = sum_k q_k twist_gk`` about the bent shaft; the centreline integrates the
+    rotated shaft direction (Simpson's rule over each pair of grid intervals: ``sub`` is even,
+    the stations fall on even points), so a bent feather keeps its length.
     """
     sx, sy, sz = ff[fo + 3], ff[fo + 4], ff[fo + 5]
     cx, cy, cz = ff[fo + 6], ff[fo + 7], ff[fo + 8]
@@ -214,89 +241,131 @@ def warp(K, ff, fo, grid, go, nst, sub, q, vst, vx, voff, nv, out, wo):
     L = ff[fo + 12]
     ng = (nst - 1) * sub + 1
     h = L / (ng - 1)
-    stride = 3 * (1 + K)
-    # centreline C and its derivatives D_k, marched along the grid (Simpson's rule over each
-    # pair of grid intervals: sub is even, the stations fall on even points)
-    C = out[wo:wo + 3]
-    D = out[wo + 3:wo + 3 + 3 * K].reshape((K, 3))
-    for k in range(3 * (1 + K)):
-        out[wo + k] = 0.0
+    SB = 6 + 6 * K
+    dw = bo + SB * nst  # running dC/dq_k
+    for k in range(3 * K):
+        buf[dw + k] = 0.0
+    Cx = 0.0
+    Cy = 0.0
+    Cz = 0.0
     c2 = 1.0  # cos, sin of the bend angle two and one grid points back
     s2 = 0.0
     c1 = 1.0
     s1 = 0.0
     w6 = 2.0 * h / 6.0
     for g in range(ng):
+        gk = go + 2 * K * g
         beta = 0.0
-        tau = 0.0
         for k in range(K):
-            beta += q[k] * grid[go + (g * K + k) * 2]
-            tau += q[k] * grid[go + (g * K + k) * 2 + 1]
-        cb, sb = np.cos(beta), np.sin(beta)
+            beta += q[qo + k] * grid[gk + 2 * k]
+        cb, sb = _cos_sin(beta)
         if g > 0 and g % 2 == 0:
-            C[0] += w6 * (c2 * sx + s2 * nx + 4.0 * (c1 * sx + s1 * nx) + cb * sx + sb * nx)
-            C[1] += w6 * (c2 * sy + s2 * ny + 4.0 * (c1 * sy + s1 * ny) + cb * sy + sb * ny)
-            C[2] += w6 * (c2 * sz + s2 * nz + 4.0 * (c1 * sz + s1 * nz) + cb * sz + sb * nz)
+            Cx += w6 * (c2 * sx + s2 * nx + 4.0 * (c1 * sx + s1 * nx) + cb * sx + sb * nx)
+            Cy += w6 * (c2 * sy + s2 * ny + 4.0 * (c1 * sy + s1 * ny) + cb * sy + sb * ny)
+            Cz += w6 * (c2 * sz + s2 * nz + 4.0 * (c1 * sz + s1 * nz) + cb * sz + sb * nz)
             for k in range(K):
-                a0 = grid[go + ((g - 2) * K + k) * 2]
-                a1 = 4.0 * grid[go + ((g - 1) * K + k) * 2]
-                a2 = grid[go + (g * K + k) * 2]
-                D[k, 0] += w6 * (a0 * (-s2 * sx + c2 * nx) + a1 * (-s1 * sx + c1 * nx)
-                                 + a2 * (-sb * sx + cb * nx))
-                D[k, 1] += w6 * (a0 * (-s2 * sy + c2 * ny) + a1 * (-s1 * sy + c1 * ny)
-                                 + a2 * (-sb * sy + cb * ny))
-                D[k, 2] += w6 * (a0 * (-s2 * sz + c2 * nz) + a1 * (-s1 * sz + c1 * nz)
-                                 + a2 * (-sb * sz + cb * nz))
+                a0 = grid[gk - 4 * K + 2 * k]
+                a1 = 4.0 * grid[gk - 2 * K + 2 * k]
+                a2 = grid[gk + 2 * k]
+                buf[dw + 3 * k] += w6 * (a0 * (-s2 * sx + c2 * nx) + a1 * (-s1 * sx + c1 * nx)
+                                         + a2 * (-sb * sx + cb * nx))
+                buf[dw + 3 * k + 1] += w6 * (a0 * (-s2 * sy + c2 * ny) + a1 * (-s1 * sy + c1 * ny)
+                                             + a2 * (-sb * sy + cb * ny))
+                buf[dw + 3 * k + 2] += w6 * (a0 * (-s2 * sz + c2 * nz) + a1 * (-s1 * sz + c1 * nz)
+                                             + a2 * (-sb * sz + cb * nz))
         c2, s2 = c1, s1
         c1, s1 = cb, sb
         if g % sub != 0:
             continue
-        j = g // sub
-        ct, st = np.cos(tau), np.sin(tau)
+        o = bo + SB * (g // sub)
+        tau = 0.0
+        for k in range(K):
+            tau += q[qo + k] * grid[gk + 2 * k + 1]
+        ct, st = _cos_sin(tau)
         # bent normal n' = -sin(b) s + cos(b) n; twisted chord c' = cos(t) c + sin(t) n'
         npx, npy, npz = -sb * sx + cb * nx, -sb * sy + cb * ny, -sb * sz + cb * nz
-        chx, chy, chz = ct * cx + st * npx, ct * cy + st * npy, ct * cz + st * npz
+        buf[o] = Cx
+        buf[o + 1] = Cy
+        buf[o + 2] = Cz
+        buf[o + 3] = ct * cx + st * npx
+        buf[o + 4] = ct * cy + st * npy
+        buf[o + 5] = ct * cz + st * npz
         # d c'/d tau and d c'/d beta
         dtx, dty, dtz = -st * cx + ct * npx, -st * cy + ct * npy, -st * cz + ct * npz
         dbx = st * (-cb * sx - sb * nx)
         dby = st * (-cb * sy - sb * ny)
         dbz = st * (-cb * sz - sb * nz)
-        for i in range(voff, voff + nv):
-            if vst[i] != j:
-                continue
-            x = vx[i]
-            o = (i - voff) * stride
-            out[o] = ff[fo] + C[0] + x * chx
-            out[o + 1] = ff[fo + 1] + C[1] + x * chy
-            out[o + 2] = ff[fo + 2] + C[2] + x * chz
-            for k in range(K):
-                sl = grid[go + (g * K + k) * 2]
-                tw = grid[go + (g * K + k) * 2 + 1]
-                out[o + 3 + 3 * k] = D[k, 0] + x * (tw * dtx + sl * dbx)
-                out[o + 4 + 3 * k] = D[k, 1] + x * (tw * dty + sl * dby)
-                out[o + 5 + 3 * k] = D[k, 2] + x * (tw * dtz + sl * dbz)
+        for k in range(K):
+            sl = grid[gk + 2 * k]
+            tw = grid[gk + 2 * k + 1]
+            ok = o + 6 + 6 * k
+            buf[ok] = buf[dw + 3 * k]
+            buf[ok + 1] = buf[dw + 3 * k + 1]
+            buf[ok + 2] = buf[dw + 3 * k + 2]
+            buf[ok + 3] = tw * dtx + sl * dbx
+            buf[ok + 4] = tw * dty + sl * dby
+            buf[ok + 5] = tw * dtz + sl * dbz
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def warp(K, ff, fo, grid, go, nst, sub, q, vst, vx, voff, nv, out, wo):
+    """Modal warping of one feather: body-frame vertex positions and their Jacobians.
+
+    ``out[(v) * 3 * (1 + K) + 3 * j + c]``: j = 0 the position, j = 1 + k the derivative by
+    mode k (see :func:`_stations`); ``out[wo:]`` is work space (``(6 + 6 K) nst + 3 K``).
+    ``q`` (K,) coordinates. Returns 1 (nothing written) when ``out`` is too small.
+    """
+    if out.size < max(wo + (6 + 6 * K) * nst + 3 * K, nv * 3 * (1 + K)) or wo < nv * 3 * (1 + K):
+        return 1
+    _stations(K, ff, fo, grid, go, nst, sub, q, 0, out, wo)
+    SB = 6 + 6 * K
+    stride = 3 * (1 + K)
+    for i in range(nv):
+        s = wo + SB * vst[voff + i]
+        x = vx[voff + i]
+        o = i * stride
+        out[o] = ff[fo] + out[s] + x * out[s + 3]
+        out[o + 1] = ff[fo + 1] + out[s + 1] + x * out[s + 4]
+        out[o + 2] = ff[fo + 2] + out[s + 2] + x * out[s + 5]
+        for k in range(K):
+            sk = s + 6 + 6 * k
+            out[o + 3 + 3 * k] = out[sk] + x * out[sk + 3]
+            out[o + 4 + 3 * k] = out[sk + 1] + x * out[sk + 4]
+            out[o + 5 + 3 * k] = out[sk + 2] + x * out[sk + 5]
     return 0
 
 
-@njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
+@njit(cache=True, inline="always")
+def _add_wrench(w, b, tx, ty, tz, fx, fy, fz):
+    """Add a wrench about the world origin (torque, force) to body ``b`` in flat ``w``."""
+    o = 6 * b
+    w[o] += tx
+    w[o + 1] += ty
+    w[o + 2] += tz
+    w[o + 3] += fx
+    w[o + 4] += fy
+    w[o + 5] += fz
+
+
+@njit(cache=True, fastmath=FASTMATH)
 def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, grid, vst, vx,
                  tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec):
     """Aerodynamic (and external) forces on every deformed feather, to its bone and its
-    modes (see the module docstring). ``fluid`` = (density, friction, K)."""
+    modes (see the module docstring). ``fluid`` = (density, friction, K, vertex work offset,
+    mode work offset); ``scratch`` holds the stations (:func:`_stations`) from 0, per vertex
+    (world position 3, deformation velocity 3, Jacobian 3 K: all in the world frame)
+    from ``fluid[3]``, the modes' (Q, q, qdot) from ``fluid[4]``."""
     rho = fluid[0]
     eta = fluid[1]
     K = int(fluid[2])
+    vo = int(fluid[3])
+    qo = int(fluid[4])
     t = tnow[0]
     nfe = fint.size // FI
     FF = 13 + 4 * K
-    stride = 3 * (1 + K)
+    VS = 6 + 3 * K
+    third = 1.0 / 3.0
     record = rec.size >= REC * (tri.size // 3)
-    wo = int(fluid[3])  # work space after the vertex data in scratch
-    Q = scratch[wo + 3 * (1 + K):wo + 3 * (1 + K) + K]
-    qk = scratch[wo + 3 * (1 + K) + K:wo + 3 * (1 + K) + 2 * K]
-    qdk = scratch[wo + 3 * (1 + K) + 2 * K:wo + 3 * (1 + K) + 3 * K]
-    P = scratch[wo + 3 * (1 + K) + 3 * K:wo + 3 * (1 + K) + 3 * K + 9].reshape((3, 3))
-    wv = wo + 3 * (1 + K) + 3 * K + 9  # per-vertex work: world position, velocity, load
     for f in range(nfe):
         b = fint[FI * f]
         qa = fint[FI * f + 1]
@@ -310,10 +379,10 @@ def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, 
         go = fint[FI * f + 9]
         fo = FF * f
         for k in range(K):
-            qk[k] = qpos[qa + k]
-            qdk[k] = qvel[da + k]
-            Q[k] = 0.0
-        warp(K, ff, fo, grid, go, nst, sub, qk, vst, vx, voff, nv, scratch, wo)
+            scratch[qo + k] = 0.0
+            scratch[qo + K + k] = qpos[qa + k]
+            scratch[qo + 2 * K + k] = qvel[da + k]
+        _stations(K, ff, fo, grid, go, nst, sub, scratch, qo + K, scratch, 0)
         m = 9 * b
         R00, R01, R02 = xmat[m], xmat[m + 1], xmat[m + 2]
         R10, R11, R12 = xmat[m + 3], xmat[m + 4], xmat[m + 5]
@@ -323,65 +392,103 @@ def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, 
         c0, c1, c2 = scom[3 * r], scom[3 * r + 1], scom[3 * r + 2]
         wx, wy, wz = cvel[6 * b], cvel[6 * b + 1], cvel[6 * b + 2]
         lx, ly, lz = cvel[6 * b + 3], cvel[6 * b + 4], cvel[6 * b + 5]
-        # every vertex once: world position, deformation velocity (body frame), load sum
+        # the bone's wrench about the world origin, summed over the feather
+        Tx = 0.0
+        Ty = 0.0
+        Tz = 0.0
+        Fsx = 0.0
+        Fsy = 0.0
+        Fsz = 0.0
+        rx, ry, rz = ff[fo], ff[fo + 1], ff[fo + 2]
+        SB = 6 + 6 * K
+        # every vertex once: its Jacobian, world position, deformation velocity; external loads
         for i in range(nv):
-            o = i * stride
-            bx, by, bz = scratch[o], scratch[o + 1], scratch[o + 2]
+            iv = voff + i
+            s = SB * vst[iv]
+            x = vx[iv]
+            bx = rx + scratch[s] + x * scratch[s + 3]
+            by = ry + scratch[s + 1] + x * scratch[s + 4]
+            bz = rz + scratch[s + 2] + x * scratch[s + 5]
+            o = vo + VS * i
+            # external vertex loads (body frame; tests and calibration)
+            gx, gy, gz = ext[3 * iv], ext[3 * iv + 1], ext[3 * iv + 2]
             u0 = 0.0
             u1 = 0.0
             u2 = 0.0
             for k in range(K):
-                u0 += scratch[o + 3 + 3 * k] * qdk[k]
-                u1 += scratch[o + 4 + 3 * k] * qdk[k]
-                u2 += scratch[o + 5 + 3 * k] * qdk[k]
-            o9 = wv + 9 * i
-            scratch[o9] = ox + R00 * bx + R01 * by + R02 * bz
-            scratch[o9 + 1] = oy + R10 * bx + R11 * by + R12 * bz
-            scratch[o9 + 2] = oz + R20 * bx + R21 * by + R22 * bz
-            scratch[o9 + 3] = u0
-            scratch[o9 + 4] = u1
-            scratch[o9 + 5] = u2
-            scratch[o9 + 6] = 0.0
-            scratch[o9 + 7] = 0.0
-            scratch[o9 + 8] = 0.0
+                sk = s + 6 + 6 * k
+                jx = scratch[sk] + x * scratch[sk + 3]
+                jy = scratch[sk + 1] + x * scratch[sk + 4]
+                jz = scratch[sk + 2] + x * scratch[sk + 5]
+                if gx != 0.0 or gy != 0.0 or gz != 0.0:
+                    scratch[qo + k] += gx * jx + gy * jy + gz * jz
+                # in the world frame from here on
+                jwx = R00 * jx + R01 * jy + R02 * jz
+                jwy = R10 * jx + R11 * jy + R12 * jz
+                jwz = R20 * jx + R21 * jy + R22 * jz
+                scratch[o + 6 + 3 * k] = jwx
+                scratch[o + 7 + 3 * k] = jwy
+                scratch[o + 8 + 3 * k] = jwz
+                qd = scratch[qo + 2 * K + k]
+                u0 += jwx * qd
+                u1 += jwy * qd
+                u2 += jwz * qd
+            pwx = ox + R00 * bx + R01 * by + R02 * bz
+            pwy = oy + R10 * bx + R11 * by + R12 * bz
+            pwz = oz + R20 * bx + R21 * by + R22 * bz
+            scratch[o] = pwx
+            scratch[o + 1] = pwy
+            scratch[o + 2] = pwz
+            scratch[o + 3] = u0
+            scratch[o + 4] = u1
+            scratch[o + 5] = u2
+            if gx != 0.0 or gy != 0.0 or gz != 0.0:
+                Gx = R00 * gx + R01 * gy + R02 * gz
+                Gy = R10 * gx + R11 * gy + R12 * gz
+                Gz = R20 * gx + R21 * gy + R22 * gz
+                Tx += pwy * Gz - pwz * Gy
+                Ty += pwz * Gx - pwx * Gz
+                Tz += pwx * Gy - pwy * Gx
+                Fsx += Gx
+                Fsy += Gy
+                Fsz += Gz
+        # forward: the bone's x axis, projected into each triangle's plane below
+        ex, ey, ez = R00, R10, R20
         for it in range(toff, toff + nt):
-            px = 0.0
-            py = 0.0
-            pz = 0.0
-            ub0 = 0.0
-            ub1 = 0.0
-            ub2 = 0.0
-            for a in range(3):
-                o9 = wv + 9 * (tri[3 * it + a] - voff)
-                P[a, 0] = scratch[o9]
-                P[a, 1] = scratch[o9 + 1]
-                P[a, 2] = scratch[o9 + 2]
-                px += scratch[o9] / 3.0
-                py += scratch[o9 + 1] / 3.0
-                pz += scratch[o9 + 2] / 3.0
-                ub0 += scratch[o9 + 3] / 3.0
-                ub1 += scratch[o9 + 4] / 3.0
-                ub2 += scratch[o9 + 5] / 3.0
-            e1x, e1y, e1z = P[1, 0] - P[0, 0], P[1, 1] - P[0, 1], P[1, 2] - P[0, 2]
-            e2x, e2y, e2z = P[2, 0] - P[0, 0], P[2, 1] - P[0, 1], P[2, 2] - P[0, 2]
+            oa = vo + VS * (tri[3 * it] - voff)
+            ob = vo + VS * (tri[3 * it + 1] - voff)
+            oc = vo + VS * (tri[3 * it + 2] - voff)
+            ax_, ay_, az_ = scratch[oa], scratch[oa + 1], scratch[oa + 2]
+            bx_, by_, bz_ = scratch[ob], scratch[ob + 1], scratch[ob + 2]
+            cx_, cy_, cz_ = scratch[oc], scratch[oc + 1], scratch[oc + 2]
+            px = (ax_ + bx_ + cx_) * third
+            py = (ay_ + by_ + cy_) * third
+            pz = (az_ + bz_ + cz_) * third
+            uw0 = (scratch[oa + 3] + scratch[ob + 3] + scratch[oc + 3]) * third
+            uw1 = (scratch[oa + 4] + scratch[ob + 4] + scratch[oc + 4]) * third
+            uw2 = (scratch[oa + 5] + scratch[ob + 5] + scratch[oc + 5]) * third
+            e1x, e1y, e1z = bx_ - ax_, by_ - ay_, bz_ - az_
+            e2x, e2y, e2z = cx_ - ax_, cy_ - ay_, cz_ - az_
             anx = e1y * e2z - e1z * e2y
             any_ = e1z * e2x - e1x * e2z
             anz = e1x * e2y - e1y * e2x
-            an = np.sqrt(anx * anx + any_ * any_ + anz * anz)
+            an2 = anx * anx + any_ * any_ + anz * anz
+            an = np.sqrt(an2)
             area = 0.5 * an
-            nx, ny, nz = anx / an, any_ / an, anz / an
-            # forward: the bone's x axis in the triangle's plane (as for the rigid meshes)
-            ex, ey, ez = R00, R10, R20
-            en = ex * nx + ey * ny + ez * nz
-            fx, fy, fz = ex - en * nx, ey - en * ny, ez - en * nz
-            fl = np.sqrt(fx * fx + fy * fy + fz * fz)
-            fx, fy, fz = fx / fl, fy / fl, fz / fl
+            ia = 1.0 / an
+            nx, ny, nz = anx * ia, any_ * ia, anz * ia
+            # e minus its normal part, unit: |e - (e.n) n|^2 = 1 - (e.n)^2 with e.n = e.a / |a|
+            # (a the area vector): computed beside |a|, not after it (a shorter dependency chain)
+            ea = ex * anx + ey * any_ + ez * anz
+            ifl = np.sqrt(an2 / (an2 - ea * ea))
+            en = ea * ia
+            fx, fy, fz = (ex - en * nx) * ifl, (ey - en * ny) * ifl, (ez - en * nz) * ifl
             # relative flow at the deformed centroid
             dx, dy, dz = px - c0, py - c1, pz - c2
             ux, uy, uz = flow_at(flow, px, py, pz, t)
-            vx_ = ux - (lx + wy * dz - wz * dy + R00 * ub0 + R01 * ub1 + R02 * ub2)
-            vy_ = uy - (ly + wz * dx - wx * dz + R10 * ub0 + R11 * ub1 + R12 * ub2)
-            vz_ = uz - (lz + wx * dy - wy * dx + R20 * ub0 + R21 * ub1 + R22 * ub2)
+            vx_ = ux - (lx + wy * dz - wz * dy + uw0)
+            vy_ = uy - (ly + wz * dx - wx * dz + uw1)
+            vz_ = uz - (lz + wx * dy - wy * dx + uw2)
             vn = vx_ * nx + vy_ * ny + vz_ * nz
             sx = ny * fz - nz * fy
             sy = nz * fx - nx * fz
@@ -394,16 +501,19 @@ def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, 
             Fx = drx + lfx + frx
             Fy = dry + lfy + fry
             Fz = drz + lfz + frz
-            add_force(w, b, Fx, Fy, Fz, px, py, pz)
-            # to the modes: F/3 at each vertex, through each vertex's Jacobian (body frame)
-            Fbx = R00 * Fx + R10 * Fy + R20 * Fz
-            Fby = R01 * Fx + R11 * Fy + R21 * Fz
-            Fbz = R02 * Fx + R12 * Fy + R22 * Fz
-            for a in range(3):
-                o9 = wv + 9 * (tri[3 * it + a] - voff)
-                scratch[o9 + 6] += Fbx / 3.0
-                scratch[o9 + 7] += Fby / 3.0
-                scratch[o9 + 8] += Fbz / 3.0
+            Tx += py * Fz - pz * Fy
+            Ty += pz * Fx - px * Fz
+            Tz += px * Fy - py * Fx
+            Fsx += Fx
+            Fsy += Fy
+            Fsz += Fz
+            # to the modes: F/3 at each vertex, through each vertex's Jacobian
+            for k in range(K):
+                k3 = 6 + 3 * k
+                scratch[qo + k] += third * (
+                    Fx * (scratch[oa + k3] + scratch[ob + k3] + scratch[oc + k3])
+                    + Fy * (scratch[oa + k3 + 1] + scratch[ob + k3 + 1] + scratch[oc + k3 + 1])
+                    + Fz * (scratch[oa + k3 + 2] + scratch[ob + k3 + 2] + scratch[oc + k3 + 2]))
             if record:
                 o = REC * it
                 rec[o] = Fx
@@ -417,40 +527,20 @@ def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, 
                 rec[o + 8] = nz
                 rec[o + 9] = area
                 rec[o + 10] = np.arctan2(abs(vn), x)
-        # the loads on the vertices through their Jacobians: the modes' generalized forces
-        for i in range(nv):
-            o = i * stride
-            o9 = wv + 9 * i
-            for k in range(K):
-                Q[k] += (scratch[o9 + 6] * scratch[o + 3 + 3 * k]
-                         + scratch[o9 + 7] * scratch[o + 4 + 3 * k]
-                         + scratch[o9 + 8] * scratch[o + 5 + 3 * k])
-        # external vertex loads (body frame; tests and calibration)
-        for i in range(nv):
-            gx, gy, gz = ext[3 * (voff + i)], ext[3 * (voff + i) + 1], ext[3 * (voff + i) + 2]
-            if gx == 0.0 and gy == 0.0 and gz == 0.0:
-                continue
-            o = i * stride
-            for k in range(K):
-                Q[k] += (gx * scratch[o + 3 + 3 * k] + gy * scratch[o + 4 + 3 * k]
-                         + gz * scratch[o + 5 + 3 * k])
-            bx, by, bz = scratch[o], scratch[o + 1], scratch[o + 2]
-            add_force(w, b, R00 * gx + R01 * gy + R02 * gz, R10 * gx + R11 * gy + R12 * gz,
-                      R20 * gx + R21 * gy + R22 * gz, ox + R00 * bx + R01 * by + R02 * bz,
-                      oy + R10 * bx + R11 * by + R12 * bz, oz + R20 * bx + R21 * by + R22 * bz)
+        _add_wrench(w, b, Tx, Ty, Tz, Fsx, Fsy, Fsz)
         for k in range(K):
-            if not np.isfinite(Q[k]):
+            Qk = scratch[qo + k]
+            if not np.isfinite(Qk):
                 return 1
-            qfrc[da + k] += Q[k]
+            qfrc[da + k] += Qk
         if record:
             base = REC * (tri.size // 3)
             if rec.size >= base + 3 * (voff + nv):
                 for i in range(nv):
-                    o = i * stride
-                    bx, by, bz = scratch[o], scratch[o + 1], scratch[o + 2]
-                    rec[base + 3 * (voff + i)] = ox + R00 * bx + R01 * by + R02 * bz
-                    rec[base + 3 * (voff + i) + 1] = oy + R10 * bx + R11 * by + R12 * bz
-                    rec[base + 3 * (voff + i) + 2] = oz + R20 * bx + R21 * by + R22 * bz
+                    o = vo + VS * i
+                    rec[base + 3 * (voff + i)] = scratch[o]
+                    rec[base + 3 * (voff + i) + 1] = scratch[o + 1]
+                    rec[base + 3 * (voff + i) + 2] = scratch[o + 2]
     return 0
 
 
@@ -535,10 +625,13 @@ class ModalFeathers(CompiledProvider):
         self.ext = np.zeros(3 * self.nvert)
         """External loads on the mesh vertices (body frame, N), for tests and calibration."""
         maxv = max(len(fm.vert_x) for fm in self.modes)
-        self._scratch = np.zeros(maxv * 3 * (1 + K) + 3 * (1 + K) + 3 * K + 9 + 9 * maxv)
+        maxst = max(fm.stations for fm in self.modes)
+        vo = (6 + 6 * K) * maxst + 3 * K  # the stations and their work space (see modal_kernel)
+        qo = vo + (6 + 3 * K) * maxv
+        self._scratch = np.zeros(qo + 3 * K)
         cl, cd = pseudo_angle_tables(table)
         self._cl, self._cd = cl, cd
-        self._fluid = np.array([density, 0.0, K, maxv * 3 * (1 + K)])
+        self._fluid = np.array([density, 0.0, K, vo, qo], dtype=float)
         self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)
         self._no_record = np.zeros(1)
         self.qadr = self._fint.reshape(-1, FI)[:, 1].copy()
@@ -571,16 +664,24 @@ class ModalFeathers(CompiledProvider):
         K = self.K
         return np.array([data.qpos[a:a + K] for a in self.qadr])
 
-    def body_vertices(self, q: np.ndarray, feather: int) -> np.ndarray:
-        """(nv, 3) deformed vertices of feather ``feather`` in its body frame for coordinates q."""
+    def warped(self, q: np.ndarray, feather: int) -> tuple[np.ndarray, np.ndarray]:
+        """Feather ``feather`` deformed by coordinates ``q`` (K,), in its body frame: its
+        vertices (nv, 3) and their Jacobians (nv, K, 3), as the force kernel builds them."""
         fm = self.modes[feather]
         K = self.K
         fi = self._fint.reshape(-1, FI)[feather]
         wo = len(fm.vert_x) * 3 * (1 + K)
-        out = np.zeros(wo + 3 * (1 + K))
-        warp(K, self._ff, (13 + 4 * K) * feather, self._grid, fi[9], fi[3], fi[4],
-             np.ascontiguousarray(q, dtype=float), self._vst, self._vx, fi[5], fi[6], out, wo)
-        return out[:wo].reshape(len(fm.vert_x), 1 + K, 3)[:, 0, :].copy()
+        out = np.zeros(wo + (6 + 6 * K) * fm.stations + 3 * K)
+        q = np.ascontiguousarray(q, dtype=float)
+        if q.shape != (K,) or warp(K, self._ff, (13 + 4 * K) * feather, self._grid, fi[9], fi[3],
+                                   fi[4], q, self._vst, self._vx, fi[5], fi[6], out, wo) != 0:
+            raise InputError(f"feather {fm.name}: {K} modal coordinates expected, got {q.shape}")
+        v = out[:wo].reshape(len(fm.vert_x), 1 + K, 3)
+        return v[:, 0, :].copy(), v[:, 1:, :].copy()
+
+    def body_vertices(self, q: np.ndarray, feather: int) -> np.ndarray:
+        """(nv, 3) deformed vertices of feather ``feather`` in its body frame for coordinates q."""
+        return self.warped(q, feather)[0]
 
     def feather_index(self, name: str) -> int:
         for i, fm in enumerate(self.modes):
