@@ -31,7 +31,8 @@ aiming at "where the joint is now plus the turn" would follow that yielding inst
 correcting it. The reach rule offsets elbow flexion by ``-reach_max_deg * c``
 (extension for more force), low-passed. Offsets act on the PD's targets as motor
 torques ``kp * offset`` (:attr:`flapsim.swim.layers.BasicStrokeLayer.extra`). Hands out
-of the water (no flow force) or in a weak flow relax their offsets.
+of the water (no flow force), in a weak flow, or outside the stroke's
+``hand_rule_phases`` (the breaststroke: its arm pull; see its file) relax their offsets.
 """
 
 from __future__ import annotations
@@ -53,8 +54,10 @@ RULES = ("palm", "reach")
 #: coming at it
 PALM_SIDE = {"l": -1.0, "r": 1.0}
 #: version of the hand rules' behaviour in still water, stored with the per-cycle
-#: calibration tables made with them (2: the palm, not the nearer face, faces the flow)
-RULES_VERSION = 2
+#: calibration tables made with them (2: the palm, not the nearer face, faces the flow;
+#: 3: the "all" tables start from straight swimming with the rules on, and the rules act
+#: only in the stroke's hand_rule_phases)
+RULES_VERSION = 3
 #: the HandRuleParams that act while calibrating (still water, no target)
 STILL_WATER_SETTINGS = ("palm_max_deg", "reach_max_deg", "min_flow", "smooth_s", "palm_gain",
                         "min_alignment")
@@ -237,7 +240,7 @@ class HandRules:
             want = np.zeros(3)
             palm_on = False
             pos = data.geom_xpos[h["geom"]]
-            if d is not None and pos[2] < self.level:
+            if d is not None and pos[2] < self.level and self.acting():
                 mujoco.mj_objectVelocity(m, data, mujoco.mjtObj.mjOBJ_GEOM, h["geom"], self._vel, 0)
                 v_rel = sw.flow.velocity(pos[None, :], now)[0] - self._vel[3:]
                 speed = float(np.linalg.norm(v_rel))
@@ -261,6 +264,13 @@ class HandRules:
                 extra[act] = kp[dof] * h["off"][k]
             row += h["off"].tolist()
         self.history.append([float(np.mean(cs)) if cs else 0.0, *row])
+
+    def acting(self) -> bool:
+        """Whether the stroke's phase is one in which the rules act (its
+        ``hand_rule_phases``; the whole cycle if it names none)."""
+        phases = self.basic.stroke.hand_rule_phases
+        ph = self.basic.phase
+        return not phases or any(a <= ph < b for a, b in phases)
 
     def _strength(self, c: float) -> float:
         c0 = self.params.min_alignment

@@ -379,15 +379,36 @@ class CalibrationWorker:
         layer.extra_on = False
         spec = mujoco.mjtState.mjSTATE_INTEGRATION
         self._spec = spec
-        self.snaps: list[tuple[np.ndarray, float, int]] = []
-        with sw:
-            for k in range(max(config.snapshot_cycles) + 1):
-                if k in config.snapshot_cycles:
-                    st = np.empty(mujoco.mj_stateSize(sw.model, spec))
-                    mujoco.mj_getState(sw.model, sw.data, st, spec)
-                    fbw = dict(self.fb.weights) if self.fb is not None else {}
-                    self.snaps.append((st, layer.phase, layer.cycles, fbw))
-                _swim_cycle(sw, layer, self.trunk, self.fwd, self.head, self.fb)
+        #: per layer mode: the states at the snapshot cycles of straight swimming from
+        #: rest with that mode's layers (the "all" tables start from swimming with the
+        #: hand rules on, as the continuous layer swims)
+        self.snaps: dict[str, list[tuple]] = {}
+        for mode in config.layers:
+            sw.reset(self.stroke.posture, qpos_joints=layer.start_pose(0.0))
+            layer.phase, layer.cycles = 0.0, 0
+            layer.set_tables(self.base)
+            if self.fb is not None:
+                self.fb.reset()
+            hands = self.hands if mode == "all" else None
+            self._rules_off()
+            layer.extra_on = hands is not None
+            snaps = self.snaps[mode] = []
+            with sw:
+                for k in range(max(config.snapshot_cycles) + 1):
+                    if k in config.snapshot_cycles:
+                        st = np.empty(mujoco.mj_stateSize(sw.model, spec))
+                        mujoco.mj_getState(sw.model, sw.data, st, spec)
+                        fbw = dict(self.fb.weights) if self.fb is not None else {}
+                        offs = [h["off"].copy() for h in self.hands.hands]
+                        snaps.append((st, layer.phase, layer.cycles, fbw, offs, layer.extra.copy()))
+                    _swim_cycle(sw, layer, self.trunk, self.fwd, self.head, self.fb, hands)
+            layer.extra_on = False
+
+    def _rules_off(self) -> None:
+        self.layer.extra[:] = 0.0
+        for h in self.hands.hands:
+            h["off"][:] = 0.0
+        self.hands.t_last = None
 
     def header(self) -> dict:
         from flapsim import __version__
@@ -396,7 +417,7 @@ class CalibrationWorker:
 
     def run_job(self, i: int) -> dict:
         mode, k, seq, w = self.jobs[i]
-        st, phase, cycles, fbw = self.snaps[k]
+        st, phase, cycles, fbw, offs, extra = self.snaps[mode][k]
         sw, layer = self.sw, self.layer
         mujoco.mj_setState(sw.model, sw.data, st, self._spec)
         mujoco.mj_forward(sw.model, sw.data)
@@ -409,11 +430,13 @@ class CalibrationWorker:
             self.fb.weights = dict(fbw)
             self.fb._last_t = None
         hands = self.hands if mode == "all" else None
-        layer.extra[:] = 0.0
+        self._rules_off()
+        if hands is not None:
+            for h, o in zip(self.hands.hands, offs, strict=True):
+                h["off"][:] = o
+            layer.extra[:] = extra
+            self.hands.t_last = float(sw.data.time)
         layer.extra_on = hands is not None
-        for h in self.hands.hands:
-            h["off"][:] = 0.0
-        self.hands.t_last = None
         start = attitude(sw.data, self.trunk, self.fwd, self.head)
         speed = float(np.linalg.norm(sw.com_velocity()))
         with sw:
@@ -457,8 +480,9 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
         sp[i] = max(sp[i], sp[i - 1] + 1e-3)
     prov = {**header, "stroke_sha256": config.stroke_sha256,
             "swimmer_params": asdict(SwimmerParams(**config.params)),
-            "method": "one cycle from the state at each snapshot cycle start, still water; "
-                      "turn = attitude at the cycle's end minus the unperturbed cycle's",
+            "method": "one cycle from the state at each snapshot cycle start of straight "
+                      "swimming from rest with the same layers, still water; turn = attitude "
+                      "at the cycle's end minus the unperturbed cycle's",
             "snapshot_cycles": list(config.snapshot_cycles)}
     return CycleTable(load_stroke(config.stroke).name, sp, np.asarray(config.weights, float),
                       {s: a[order] for s, a in angles.items()}, offsets[order], level[order], prov)

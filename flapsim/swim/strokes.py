@@ -38,6 +38,9 @@ rotation they make::
     [cycle.yaw_left.keys.neck]
     bend = [[0.0, 40]]
 
+``hand_rule_phases = [[0.0, 0.4]]`` (top level, optional) limits the continuous layer's
+hand rules to those parts of the cycle (default: all of it).
+
 At the start of every cycle :class:`flapsim.swim.cycle.CycleLayer` scales them by
 weights read from the stroke's calibration table (``<name>.cycle.json``, made by
 ``flapsim swim --calibrate``).
@@ -144,6 +147,9 @@ class Stroke:
     perturbations: dict = field(default_factory=dict)
     #: the per-cycle layer's sequences (:data:`CYCLE_SEQUENCES` names), may be empty
     cycle: dict = field(default_factory=dict)
+    #: phase intervals [start, end) of the cycle in which the continuous layer's hand
+    #: rules act (:mod:`flapsim.swim.continuous`); empty: the whole cycle
+    hand_rule_phases: tuple = ()
 
     @property
     def rate_hz(self) -> float:
@@ -316,7 +322,23 @@ def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
     if clash:
         raise DataFileError(f"{path}: {sorted(clash)} named both in [perturb] and [cycle]")
     return Stroke(str(raw.get("name", Path(path).stem)), period, posture, interp, keys,
-                  str(raw.get("description", "")), str(path), perturbations, cycle)
+                  str(raw.get("description", "")), str(path), perturbations, cycle,
+                  _parse_phases(raw.get("hand_rule_phases", []), path))
+
+
+def _parse_phases(raw: object, path: str | Path) -> tuple:
+    """``hand_rule_phases``: a list of [start, end] phase pairs, 0 <= start < end <= 1."""
+    msg = f"{path}: hand_rule_phases must be a list of [start, end] phases, 0 <= start < end <= 1"
+    if not isinstance(raw, list):
+        raise DataFileError(msg)
+    out = []
+    for pair in raw:
+        if not (isinstance(pair, list) and len(pair) == 2
+                and all(isinstance(x, int | float) and not isinstance(x, bool) for x in pair)
+                and 0.0 <= pair[0] < pair[1] <= 1.0):
+            raise DataFileError(f"{msg}, got {pair!r}")
+        out.append((float(pair[0]), float(pair[1])))
+    return tuple(out)
 
 
 def _parse_keys(table: object, mirror: dict, path: str | Path, where: str,
