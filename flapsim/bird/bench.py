@@ -152,12 +152,18 @@ def run_train(args: argparse.Namespace) -> dict:
 
 
 def run_controller(args: argparse.Namespace) -> dict:
-    """``flapsim bench controller``: the learned controller's cruise in real-time factor, and
-    what a controlled wingbeat costs against a base wingbeat (the P0 prediction, the
-    regression and the flown wingbeat) in the same run."""
+    """``flapsim bench controller``: the learned controller's cruise in real-time factor (S0
+    simulated every wingbeat, the default, and ``predict="regression"``), what a controlled
+    wingbeat costs against a base wingbeat (the P0 prediction, the regression and the flown
+    wingbeat), and each against a bare ``mujoco.rollout`` of P0 (the floor: no controller, no
+    Python), all in the same run."""
+    from mujoco import rollout
+
+    from flapsim.bird import cycle
     from flapsim.bird.controller import (
         BaseController,
         CruiseTarget,
+        attach_predictor,
         fly_controlled,
         load_controller,
         start_cruise,
@@ -166,17 +172,31 @@ def run_controller(args: argparse.Namespace) -> dict:
     from flapsim.bird.flight import DoveFlight
 
     n = max(4, int(getattr(args, "wingbeats", None) or 20))
+    db = getattr(args, "db", None)
     dove = Dove.load()
     fl = DoveFlight(dove)
     try:
-        ctl = load_controller(fl, getattr(args, "db", None))
+        ctl = load_controller(fl, db)
+        reg = attach_predictor(load_controller(fl, db), db)
         trim = trim_of_base_flight(fl, ctl.P0)
         res = {}
-        for name, c in (("learned", ctl), ("base", BaseController(fl, ctl.P0))):
+        for name, c in (("learned", ctl), ("learned_regression", reg), ("base", BaseController(fl, ctl.P0))):
             start_cruise(fl, ctl.P0)
             f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
             res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
                          "real_time_factor": f.simulated_s / f.wall_time}
+        start_cruise(fl, ctl.P0)
+        snap = cycle.snapshot(fl)
+        m = fl.model
+        ctrl = cycle.cached_control_table(fl.ref, ctl.P0, m.opt.timestep, fl.kp, fl.kv)
+        t0 = time.perf_counter()
+        for _ in range(n):
+            rollout.rollout(m, fl.data, snap.physics[None], ctrl[None],
+                            initial_warmstart=snap.warmstart[None])
+        wall = time.perf_counter() - t0
+        res["bare_rollout"] = {"wingbeats": n, "simulated_s": n * len(ctrl) * float(m.opt.timestep),
+                               "wall_s": wall}
+        res["bare_rollout"]["real_time_factor"] = res["bare_rollout"]["simulated_s"] / wall
         x = np.zeros(8)
         t0 = time.perf_counter()
         for _ in range(200):
@@ -184,19 +204,27 @@ def run_controller(args: argparse.Namespace) -> dict:
         query_ms = (time.perf_counter() - t0) / 200 * 1e3
     finally:
         fl.close()
+    bare = res["bare_rollout"]["real_time_factor"]
     out = {
         "target": "controller",
         "database_samples": ctl.regressor.n,
         "method": ctl.regressor.method,
         "k": ctl.regressor.k,
         "real_time_factor": res["learned"]["real_time_factor"],
+        "real_time_factor_regression": res["learned_regression"]["real_time_factor"],
         "cost_over_base": res["base"]["real_time_factor"] / res["learned"]["real_time_factor"],
+        "over_bare_rollout": {k: v["real_time_factor"] / bare for k, v in res.items()},
         "regression_ms": query_ms,
         "measurements": res,
     }
+    r = out["over_bare_rollout"]
     print(f"learned controller ({out['method']}, k={out['k']}, {out['database_samples']} samples): "
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
+    print(f"  --predict regression: {out['real_time_factor_regression']:.1f}x real time")
+    print(f"  against a bare rollout of the reference wingbeat ({bare:.1f}x real time): learned "
+          f"{r['learned']:.2f}, learned --predict regression {r['learned_regression']:.2f}, "
+          f"base {r['base']:.2f}")
     return out
 
 
