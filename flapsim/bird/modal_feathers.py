@@ -355,9 +355,21 @@ def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, 
     mode work offset); ``scratch`` holds the stations (:func:`_stations`) from 0, per vertex
     (world position 3, deformation velocity 3, Jacobian 3 K: all in the world frame)
     from ``fluid[3]``, the modes' (Q, q, qdot) from ``fluid[4]``."""
+    K = int(fluid[2])
+    if K == 1:  # the dove's default: compiled with the loops over the modes unrolled
+        return _modal_forces(1, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff,
+                             grid, vst, vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow,
+                             rec)
+    return _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, grid,
+                         vst, vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec)
+
+
+@njit(cache=True, inline="always", fastmath=FASTMATH)
+def _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, grid, vst,
+                  vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec):
+    """:func:`modal_kernel` for K modes per feather."""
     rho = fluid[0]
     eta = fluid[1]
-    K = int(fluid[2])
     vo = int(fluid[3])
     qo = int(fluid[4])
     t = tnow[0]
