@@ -16,7 +16,9 @@ dispatcher, for every feather:
 
 1. builds the deformed feather by modal warping (each shaft section rotated by the modes'
    slope and twist, the centreline integrated: a bent feather keeps its length), and the
-   Jacobian of each vertex with respect to each modal coordinate;
+   Jacobian of each vertex with respect to each modal coordinate (once per shaft station,
+   :func:`_stations`, then per vertex; the kernel is compiled separately for the default
+   one mode per feather);
 2. computes drag and lift on every *deformed* triangle with the shared surface-force
    formula (:func:`flapsim.fluid.surfaces.plate_force`), with the point velocity of the bone
    plus the deformation rate, and applies it to the bone at the deformed centroid (the paper's
@@ -211,8 +213,9 @@ _C2, _C4, _C6, _C8, _C10, _C12, _C14 = (-1 / 2, 1 / 24, -1 / 720, 1 / 40320, -1 
 
 @njit(cache=True, inline="always", fastmath=FASTMATH)
 def _cos_sin(a):
-    """(cos a, sin a): a polynomial for |a| < 1/2 (the bends and twists of flight; to the
-    last bit of libm's, see ``tests/bird/test_modal_kernel.py``), libm beyond."""
+    """(cos a, sin a): a polynomial for |a| < 1/2 (the bends and twists of flight, below
+    0.1 rad in the base flight; within 2 ulp of libm's, ``tests/bird/test_modal_kernel.py``),
+    libm beyond. A third of the warp's cost with libm's sin and cos."""
     if -0.5 < a < 0.5:
         a2 = a * a
         s = a * (1.0 + a2 * (_S3 + a2 * (_S5 + a2 * (_S7 + a2 * (_S9 + a2 * (_S11 + a2 * _S13))))))
