@@ -35,8 +35,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--predict", choices=("simulate", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper) or predict it from "
-                        "the database's (S, S0) pairs, simulating only every 4th wingbeat to "
-                        "correct the prediction's bias (~1.6x faster, slightly larger errors)")
+                        "the database's (S, S0) pairs, simulating only some wingbeats to "
+                        "correct its bias (EXPERIMENTAL: 1.4-1.6x faster; holds cruise and the "
+                        "level figure of eight but loses the rising one)")
     p.add_argument("--roll-deg", type=float, default=0.0,
                    help="initial roll error, deg (+ right wing down)")
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
