@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from flapsim.bird.feather_modes import ModalParams
 from flapsim.bird.flight import DoveFlight, FlightConfig
 from flapsim.bird.modal_feathers import REC, ModalFeathers, modal_kernel
 from flapsim.bird.model import Dove
@@ -75,11 +76,12 @@ def _reference(prov, m, d, density, cl, cd):
     return np.array(forces), wrench, Q
 
 
-@pytest.fixture(scope="module")
-def bent_state():
-    """A modal dove one wingbeat into the base flight, its modes then scaled (positions and
+@pytest.fixture(scope="module", params=[1, 4], ids=["one mode", "four modes"])
+def bent_state(request):
+    """A modal dove (the default one mode per feather, and the paper's four: the kernel is
+    compiled for each) one wingbeat into the base flight, its modes then scaled (positions and
     rates) until the largest bend angle is 1.2 rad: both branches of the kernel's cos/sin."""
-    dove = Dove.load(feathers="modal")
+    dove = Dove.load(feathers="modal", modal=ModalParams(modes=request.param))
     fl = DoveFlight(dove)
     try:
         cfg = FlightConfig()
