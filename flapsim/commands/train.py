@@ -54,7 +54,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--chunk-size", type=int, default=None, metavar="C",
                    help="samples per work unit (default 16, or the resumed file's)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
-                   help="phase 1: the dove's feathers, rigid (default) or modal (bending; ~1.7x "
+                   help="phase 1: the dove's feathers, rigid (default) or modal (bending; ~1.4x "
                         "slower); the database only serves a dove with the same feathers")
     p.add_argument("--float32", action="store_true",
                    help="store the finished database's samples in single precision (half the "
