@@ -23,6 +23,20 @@ from flapsim.swim.strokes import load_stroke
 from flapsim.swim.targets import figure_eight
 
 
+def figure8_setup(a: argparse.Namespace) -> tuple:
+    """(scenario, loop radius m, seconds, HandRuleParams) from ``--stroke``, ``--radius`` and
+    ``--set field=value`` (the run lasts longer in proportion to a larger radius)."""
+    sc = get(f"swim-figure8-{a.stroke}")
+    r0 = float(sc.params["radius_m"])
+    radius = r0 if a.radius is None else a.radius
+    seconds = float(sc.params["seconds"]) * max(1.0, radius / r0)
+    kw = {}
+    for item in a.set:
+        k, v = item.split("=", 1)
+        kw[k] = float(v)
+    return sc, radius, seconds, dataclasses.replace(HandRuleParams(), **kw)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--stroke", default="crawl")
@@ -33,15 +47,7 @@ def main() -> None:
     ap.add_argument("--rules", default=None, help="continuous rules, comma-separated (default both)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    sc = get(f"swim-figure8-{a.stroke}")
-    r0 = float(sc.params["radius_m"])
-    radius = r0 if a.radius is None else a.radius
-    seconds = float(sc.params["seconds"]) * max(1.0, radius / r0)
-    kw = {}
-    for item in a.set:
-        k, v = item.split("=", 1)
-        kw[k] = float(v)
-    hp = dataclasses.replace(HandRuleParams(), **kw)
+    sc, radius, seconds, hp = figure8_setup(a)
     for layers in a.layers.split(","):
         table = None
         if a.table and layers != "basic":
@@ -49,14 +55,15 @@ def main() -> None:
         r = swim(a.stroke, seconds, target=figure_eight(radius), layers=layers, hand_params=hp,
                  cycle_table=table, rules=None if a.rules is None else tuple(a.rules.split(",")))
         m = _metrics(r)
-        row = {"stroke": a.stroke, "radius_m": radius, "layers": layers, "set": kw, "rules": a.rules,
+        row = {"stroke": a.stroke, "radius_m": radius, "layers": layers, "set": a.set, "rules": a.rules,
                "mean_m": m["distance_to_target_mean_m"], "max_m": m["distance_to_target_max_m"],
                "done": m["path_completed_fraction"], "swum_m": m["distance_swum_m"],
                "time_s": m["time_to_reach_s"]}
         if a.json:
             print(json.dumps(row))
         else:
-            print(f"{a.stroke:13s} r={radius:4.1f} {layers:5s} {a.rules or ''} {kw} mean {row['mean_m']:.2f} "
+            print(f"{a.stroke:13s} r={radius:4.1f} {layers:5s} {a.rules or ''} {a.set} "
+                  f"mean {row['mean_m']:.2f} "
                   f"max {row['max_m']:.2f} done {row['done']:.2f} swum {row['swum_m']:.1f} "
                   f"t {row['time_s']}")
 

@@ -18,12 +18,11 @@ swimmer's velocity (2 m look-ahead); prints the mean turn rate, speed and yaw we
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 
 import numpy as np
+from swim_figure8_layers import figure8_setup  # scripts/ is on sys.path when run as a script
 
-from flapsim.scenarios import get
 from flapsim.swim.continuous import HandRuleParams
 from flapsim.swim.simulate import swim
 from flapsim.swim.targets import figure_eight
@@ -118,26 +117,18 @@ def main() -> None:
     ap.add_argument("--bins", type=int, default=10)
     ap.add_argument("--steady", type=float, default=None, help="a steady turn, target this many deg left")
     a = ap.parse_args()
-    sc = get(f"swim-figure8-{a.stroke}")
-    r0 = float(sc.params["radius_m"])
-    radius = r0 if a.radius is None else a.radius
-    seconds = float(sc.params["seconds"]) * max(1.0, radius / r0)
-    kw = {}
-    for item in a.set:
-        k, v = item.split("=", 1)
-        kw[k] = float(v)
-    hp = dataclasses.replace(HandRuleParams(), **kw)
+    sc, radius, seconds, hp = figure8_setup(a)
     rules = None if a.rules is None else tuple(x for x in a.rules.split(",") if x)
     for layers in a.layers.split(","):
         if a.steady is not None:
             r = steady(a.stroke, layers, a.steady, hp, rules)
             per = r["turn_deg_s"] / r["weight"] if r["weight"] > 0 else float("nan")
-            print(f"{a.stroke} steady turn, target {a.steady:g} deg left, {layers} rules={a.rules} {kw}: "
+            print(f"{a.stroke} steady turn, target {a.steady:g} deg left, {layers} rules={a.rules} {a.set}: "
                   f"{r['turn_deg_s']:.1f} deg/s at {r['speed']:.2f} m/s, yaw weight {r['weight']:.2f} "
                   f"({per:.1f} deg/s per unit weight)")
             continue
         r = measure(a.stroke, layers, radius, seconds, hp, rules, a.min_weight, a.bins)
-        print(f"{a.stroke} r={radius:g} {layers} rules={a.rules} {kw}: turn {r['turn_deg_s']:.1f} deg/s "
+        print(f"{a.stroke} r={radius:g} {layers} rules={a.rules} {a.set}: turn {r['turn_deg_s']:.1f} deg/s "
               f"at {r['speed']:.2f} m/s; arms' yaw moment {r['arm_mz']:+.2f} N m, rest {r['body_mz']:+.2f}, "
               f"arms' forward force {r['arm_fwd']:+.1f} N ({r['samples']} samples)")
         print("   phase   arms Mz   body Mz   arms fwd")
