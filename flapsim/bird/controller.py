@@ -429,9 +429,12 @@ class S0Predictor:
     S0 (level figure of eight Ep/Er/Eo/Ef 0.042/0.026/0.011/0.105 against 0.042/0.026/0.010/
     0.098) at 1.4-1.6x the speed, but the rising figure of eight is LOST (wingbeat ~160-250)
     with every variant tried (bias gain 0.5/1, tolerance halved: 212 of 305 wingbeats
-    simulated): in its climbing lobe the regression's misses are correlated (vy 0.15-0.4
-    m/s, pitch 0.05-0.18 rad), while random misses of the same size with simulated S0 do not
-    lose it.
+    simulated); in its climbing lobe the regression's misses are correlated (vy 0.15-0.4
+    m/s, pitch 0.05-0.18 rad). That path is on a knife edge even with S0 simulated: asked
+    6.995-7.005 m/s it completes 6 of 7 runs (lost at 7.003), this predictor 2 of 7, and
+    Gaussian errors of 1-100 % of the typical miss added to the simulated S0 lose it in 1-3
+    of 3 seeds. An S0 model fitted online on the flight's own simulated wingbeats (joint state
+    and the last wingbeat as inputs) halved the misses and completed 1 of 7: not kept.
     """
 
     regressor: Regressor
