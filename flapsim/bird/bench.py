@@ -217,6 +217,7 @@ def run_controller(args: argparse.Namespace) -> dict:
         trim_of_base_flight,
     )
     from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.wingbeat import control_table
 
     n = max(4, int(getattr(args, "wingbeats", None) or 20))
     db = getattr(args, "db", None)
@@ -235,7 +236,7 @@ def run_controller(args: argparse.Namespace) -> dict:
         start_cruise(fl, ctl.P0)
         snap = cycle.snapshot(fl)
         m = fl.model
-        ctrl = cycle.cached_control_table(fl.ref, ctl.P0, m.opt.timestep, fl.kp, fl.kv)
+        ctrl, _, _ = control_table(fl.ref, ctl.P0, m.opt.timestep, fl.kp, fl.kv)
         t0 = time.perf_counter()
         for _ in range(n):
             rollout.rollout(m, fl.data, snap.physics[None], ctrl[None],

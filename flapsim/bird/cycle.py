@@ -18,7 +18,7 @@ import numpy as np
 
 from flapsim.bird.flight import DoveFlight, reduced_state
 from flapsim.bird.model import DOF_NAMES
-from flapsim.bird.wingbeat import ReferenceWingbeat, cached_control_table, split
+from flapsim.bird.wingbeat import ReferenceWingbeat, control_table, split
 from flapsim.errors import SimulationError
 from flapsim.sim.callbacks import DISPATCHER
 
@@ -103,28 +103,9 @@ def dof_angles(fl: DoveFlight, qpos: np.ndarray) -> np.ndarray:
     return out
 
 
-_RANGES_CACHE: dict = {}
-
-
 def model_dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) of the 14 DOF from the compiled model (joint ranges; the tail spread's
-    tendon range); +-inf where a DOF is unlimited. Cached per model and range arrays (an
-    in-place edit of a range is a new key); the arrays returned are read-only."""
-    m, dv = fl.model, fl.dove
-    key = (id(m), dv.qadr.tobytes(), m.jnt_range.tobytes(), m.jnt_limited.tobytes(),
-           m.tendon_range.tobytes(), m.tendon_limited.tobytes())
-    hit = _RANGES_CACHE.get(key)
-    if hit is not None and hit[0] is m:
-        return hit[1], hit[2]
-    lo, hi = _model_dof_ranges(fl)
-    lo.flags.writeable = hi.flags.writeable = False
-    if len(_RANGES_CACHE) >= 16:
-        _RANGES_CACHE.clear()
-    _RANGES_CACHE[key] = (m, lo, hi)  # holding m keeps its id from being reused
-    return lo, hi
-
-
-def _model_dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
+    tendon range); +-inf where a DOF is unlimited."""
     m, dv = fl.model, fl.dove
     lo, hi = np.full(len(dv.qadr), -np.inf), np.full(len(dv.qadr), np.inf)
     for i in range(len(dv.qadr)):
@@ -188,7 +169,7 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
     if snap is not None:
         restore(fl, snap)
     ref = ref or fl.ref
-    ctrl = cached_control_table(ref, p, m.opt.timestep, fl.kp, fl.kv)
+    ctrl, _, _ = control_table(ref, p, m.opt.timestep, fl.kp, fl.kv)
     s0 = np.empty(mujoco.mj_stateSize(m, STATE_SPEC))
     mujoco.mj_getState(m, d, s0, STATE_SPEC)
     warm = d.qacc_warmstart.copy()

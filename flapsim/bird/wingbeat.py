@@ -178,23 +178,3 @@ def control_table(ref: ReferenceWingbeat, p: np.ndarray, dt: float, kp: np.ndarr
     q, qd = ref.evaluate(p, t)
     return pd_ctrl(kp, kv, q, qd), q, qd
 
-
-_CTRL_CACHE: dict = {}
-
-
-def cached_control_table(ref: ReferenceWingbeat, p: np.ndarray, dt: float, kp: np.ndarray,
-                         kv: np.ndarray) -> np.ndarray:
-    """The controls of :func:`control_table` (``t0 = 0``), read-only, from a small cache
-    keyed by the reference, ``p``, ``dt`` and the gains: the learned controller's P0
-    prediction flies the same wingbeat every time."""
-    key = (id(ref), np.asarray(p, float).tobytes(), float(dt), np.asarray(kp, float).tobytes(),
-           np.asarray(kv, float).tobytes())
-    hit = _CTRL_CACHE.get(key)
-    if hit is not None and hit[0] is ref:
-        return hit[1]
-    ctrl = control_table(ref, p, dt, kp, kv)[0]
-    ctrl.flags.writeable = False
-    if len(_CTRL_CACHE) >= 8:
-        _CTRL_CACHE.pop(next(iter(_CTRL_CACHE)))  # oldest first
-    _CTRL_CACHE[key] = (ref, ctrl)  # holding ref keeps its id from being reused
-    return ctrl

@@ -17,7 +17,6 @@ from flapsim.bird.controller import (
 from flapsim.bird.database import load_database
 from flapsim.bird.flight import DoveFlight
 from flapsim.bird.model import Dove
-from flapsim.bird.wingbeat import cached_control_table, control_table
 from flapsim.errors import InputError
 
 SHARED_FLIGHT = True
@@ -162,20 +161,6 @@ def test_a_database_without_s0_is_refused_for_regression(flight, tmp_path):
         attach_predictor(ctl, path)
     with pytest.raises(InputError, match="'S'"):
         load_controller(flight, path, predict="regression")
-
-
-def test_cached_control_table_is_the_table_and_read_only(flight, controller):
-    m = flight.model
-    ref = controller.ref
-    c = cached_control_table(ref, controller.P0, m.opt.timestep, flight.kp, flight.kv)
-    np.testing.assert_array_equal(c, control_table(ref, controller.P0, m.opt.timestep, flight.kp,
-                                                   flight.kv)[0])
-    assert not c.flags.writeable
-    p = controller.P0.copy()
-    p[-1] = 1.1  # another wingbeat: another table
-    c2 = cached_control_table(ref, p, m.opt.timestep, flight.kp, flight.kv)
-    assert len(c2) != len(c)
-    np.testing.assert_array_equal(c2, control_table(ref, p, m.opt.timestep, flight.kp, flight.kv)[0])
 
 
 def test_dof_ranges_follow_an_edit_of_the_model(flight):
