@@ -5,8 +5,9 @@ arc-length-like chord parameter). Each wingbeat :class:`PathTarget` finds the cl
 point (searching forward from the last one, so a path that crosses itself is followed in
 order), looks ``lookahead_s`` seconds ahead at the current speed (paper: 1 s, ~7 m), and
 builds a cubic Hermite recovery curve from the bird's position and velocity to that point
-and its tangent. The end of the wingbeat on that curve is the desired position; the curve's
-direction there is the desired flight direction (heading and climb), and its curvature the
+and its tangent. The end of the wingbeat on that curve is the desired position (evaluated,
+once the wingbeat is flown, at the time it actually ended: :meth:`PathTarget.end`); the
+curve's direction there is the desired flight direction (heading and climb), and its curvature the
 turn, flown banked so that lift balances gravity and the centrifugal force (the paper's
 eq. 5: F_lift = -m g - m v^2/r n, i.e. tan(bank) = v^2 / (g r) for a level turn). That
 becomes the wingbeat controller's target state (:func:`~flapsim.bird.controller.target_state`).
@@ -203,6 +204,7 @@ class PathTarget:
     the path's ground track is then flown with the airspeed ``speed`` along the air-relative
     direction that makes it good (crabbing into a crosswind)."""
     _start: tuple | None = None
+    _curve: tuple | None = None
 
     def begin(self, position: np.ndarray, velocity: np.ndarray) -> None:
         """The bird's trunk position and centre-of-mass velocity as the wingbeat begins: where
@@ -228,6 +230,7 @@ class PathTarget:
         t_t = self.path.tangent(s_t) * max(speed_now, 1.0)
         T = self.lookahead_s
         pd, vd, ad = hermite(p, v, p_t, t_t, T, min(dt, T))
+        self._curve = (p, v, p_t, t_t, T)
         w = (np.zeros(3) if self.wind is None
              else np.asarray(self.wind(p, float(e0.snapshot.physics[0])), float))
         e_v = self.speed - float(np.linalg.norm(v - w))  # the speed asked is airspeed
@@ -253,6 +256,20 @@ class PathTarget:
                          wind=None if self.wind is None else w)
         self.desired.append((pd, _attitude_quat(heading, climb + self.trim.aoa, bank)))
         return S
+
+    def end(self, duration: float) -> None:
+        """The wingbeat just flown lasted ``duration`` s: its desired position becomes the
+        recovery curve's point at that time. The target was set at the reference wingbeat's
+        predicted end, but the wingbeat flown has its own timewarp (the learned controller's
+        wingbeats are ~5 % shorter than P0's on the figure of eight), and comparing the bird's
+        end with the curve at another time would count the curve's own progress in between
+        (~7 m/s x 5 ms = 3.5 cm along the track, every wingbeat) as a position error."""
+        if self._curve is None or not self.desired:
+            raise InputError("PathTarget.end(duration) comes after the target was asked for a wingbeat")
+        p, v, p_t, t_t, T = self._curve
+        pd = hermite(p, v, p_t, t_t, T, min(float(duration), T))[0]
+        self.desired[-1] = (pd, self.desired[-1][1])
+        self._curve = None
 
 
 def _attitude_quat(heading: float, pitch: float, bank_left: float) -> np.ndarray:

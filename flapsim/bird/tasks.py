@@ -234,6 +234,7 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
                 status, reason = "diverged", str(exc)
                 break
             e = step.end
+            target.end(e.duration)
             positions.append(e.trunk_pos)
             times.append(float(d.time))
             quats.append(e.trunk_quat)
