@@ -10,7 +10,8 @@ a second from the local relative flow at each hand.
 drag acts along the water's velocity relative to the hand, ``v_rel = v_water -
 v_hand``, so a hand whose ``v_rel`` points along the desired direction ``d``
 (:meth:`HandRules.direction`: forwards for prone strokes, tilted towards a target's
-depth; towards the target for treading water) can push the swimmer that way
+depth, or turned towards the aim by the stroke's ``hand_rule_aim`` times its bearing;
+towards the target for treading water) can push the swimmer that way
 (``c = v_rel . d / |v_rel| > 0``: more force wanted: face the flow, reach out), and one
 whose ``v_rel`` points against ``d`` holds it back (``c < 0``: less force wanted:
 slice, fold in). The rules scale with ``|c|``. With a target, ``d`` is scaled by how much
@@ -32,7 +33,8 @@ correcting it. The reach rule offsets elbow flexion by ``-reach_max_deg * c``
 (extension for more force), low-passed. Offsets act on the PD's targets as motor
 torques ``kp * offset`` (:attr:`flapsim.swim.layers.BasicStrokeLayer.extra`). Hands out
 of the water (no flow force), in a weak flow, or outside the stroke's
-``hand_rule_phases`` (the breaststroke: its arm pull; see its file) relax their offsets.
+``hand_rule_phases`` (per rule or for both; the breaststroke: its arm pull, the palm
+rule not in the outsweep; see its file) relax that rule's offsets.
 """
 
 from __future__ import annotations
@@ -44,9 +46,11 @@ import mujoco
 import numpy as np
 
 from flapsim.errors import InputError
+from flapsim.swim.feedback import wrap_angle
 from flapsim.swim.layers import BasicStrokeLayer
+from flapsim.swim.strokes import HAND_RULES
 
-RULES = ("palm", "reach")
+RULES = HAND_RULES
 #: the palm's outward normal is the hand box's local y axis times this (the boxes are
 #: mirrored): on the crawl's basic stroke the pull's relative flow has
 #: y . v_rel/|v_rel| = +0.65 at the left hand and -0.63 at the right (speed-weighted,
@@ -166,7 +170,10 @@ class HandRules:
 
         Prone strokes: forwards, the body line's heading (pelvis to head; steering is
         the per-cycle layer's job, the paper's Fig. 8c: "maximize forward thrust"),
-        tilted towards a target's depth. Upright (treading water): towards the target,
+        tilted towards a target's depth; with a target and the stroke's
+        ``hand_rule_aim`` k > 0, turned from the body line towards the aim by k times
+        the aim's bearing (at most 90 deg: the breaststroke's sweeping hands push
+        sideways into the turn). Upright (treading water): towards the target,
         horizontally; without a target nowhere (the rules rest)."""
         sw = self.basic.swimmer
         mujoco.mj_subtreeVel(sw.model, data)
@@ -192,6 +199,9 @@ class HandRules:
                     if self.params.turn_slowdown > 0:
                         self.need = min(self.need, 1.0 - self.params.turn_slowdown * w)
                     self.reach_scale = max(0.0, 1.0 - self.params.tuck_in_turns * w)
+                k = self.basic.stroke.hand_rule_aim
+                if k > 0:  # towards the aim, by k times its bearing
+                    h += float(np.clip(k * wrap_angle(aim - h), -math.pi / 2, math.pi / 2))
         elif self.target is None:
             return None
         else:
@@ -240,7 +250,8 @@ class HandRules:
             want = np.zeros(3)
             palm_on = False
             pos = data.geom_xpos[h["geom"]]
-            if d is not None and pos[2] < self.level and self.acting():
+            acts = [r for r in self.rules if self.acting(r)]
+            if d is not None and pos[2] < self.level and acts:
                 mujoco.mj_objectVelocity(m, data, mujoco.mjtObj.mjOBJ_GEOM, h["geom"], self._vel, 0)
                 v_rel = sw.flow.velocity(pos[None, :], now)[0] - self._vel[3:]
                 speed = float(np.linalg.norm(v_rel))
@@ -248,10 +259,10 @@ class HandRules:
                     u = v_rel / speed
                     c = float(np.clip(u @ d, -1.0, 1.0)) * self.need
                     cs.append(c)
-                    if "palm" in self.rules:
+                    if "palm" in acts:
                         want[:2] = self._palm(data, h, u, c, target)
                         palm_on = True
-                    if "reach" in self.rules:
+                    if "reach" in acts:
                         want[2] = -math.radians(p.reach_max_deg) * self.reach_scale * \
                             math.copysign(self._strength(c), c)
             if palm_on:  # integral: want holds the new palm offsets
@@ -265,12 +276,10 @@ class HandRules:
             row += h["off"].tolist()
         self.history.append([float(np.mean(cs)) if cs else 0.0, *row])
 
-    def acting(self) -> bool:
-        """Whether the stroke's phase is one in which the rules act (its
-        ``hand_rule_phases``; the whole cycle if it names none)."""
-        phases = self.basic.stroke.hand_rule_phases
-        ph = self.basic.phase
-        return not phases or any(a <= ph < b for a, b in phases)
+    def acting(self, rule: str) -> bool:
+        """Whether the stroke's phase is one in which ``rule`` acts (the stroke's
+        ``hand_rule_phases``; the whole cycle if it names none for the rule)."""
+        return self.basic.stroke.rule_acts(rule, self.basic.phase)
 
     def _strength(self, c: float) -> float:
         c0 = self.params.min_alignment

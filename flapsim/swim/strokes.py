@@ -39,7 +39,14 @@ rotation they make::
     bend = [[0.0, 40]]
 
 ``hand_rule_phases = [[0.0, 0.4]]`` (top level, optional) limits the continuous layer's
-hand rules to those parts of the cycle (default: all of it).
+hand rules to those parts of the cycle (default: all of it); a table limits each rule
+on its own (a rule it does not name acts all cycle)::
+
+    hand_rule_phases = { palm = [[0.1, 0.4]], reach = [[0.0, 0.4]] }
+
+``hand_rule_aim = 5.0`` (top level, optional, prone strokes) turns the hand rules'
+desired direction from the body line towards a target's aim by this times the aim's
+bearing (at most 90 deg; default 0: forwards).
 
 At the start of every cycle :class:`flapsim.swim.cycle.CycleLayer` scales them by
 weights read from the stroke's calibration table (``<name>.cycle.json``, made by
@@ -70,6 +77,8 @@ STROKE_DIR = Path(__file__).resolve().parent / "strokes"
 STROKES = ("breaststroke", "crawl", "treading")
 #: the largest key angle a stroke file may give, deg (a windmilling arm needs one turn)
 MAX_KEY_DEG = 1080.0
+#: the continuous layer's hand rules (:mod:`flapsim.swim.continuous`)
+HAND_RULES = ("palm", "reach")
 #: the per-cycle layer's sequence names -> (rotation axis, sign of the change it makes
 #: in the angle of :func:`flapsim.swim.cycle.attitude`: yaw + = left, pitch + = up,
 #: roll + = left side up)
@@ -147,9 +156,19 @@ class Stroke:
     perturbations: dict = field(default_factory=dict)
     #: the per-cycle layer's sequences (:data:`CYCLE_SEQUENCES` names), may be empty
     cycle: dict = field(default_factory=dict)
-    #: phase intervals [start, end) of the cycle in which the continuous layer's hand
-    #: rules act (:mod:`flapsim.swim.continuous`); empty: the whole cycle
-    hand_rule_phases: tuple = ()
+    #: per hand rule (:data:`HAND_RULES`): the phase intervals [start, end) of the cycle
+    #: in which the continuous layer applies it (:mod:`flapsim.swim.continuous`); a rule
+    #: not named here acts all cycle
+    hand_rule_phases: dict = field(default_factory=dict)
+    #: prone strokes with a target: the hand rules' desired direction turns from the
+    #: body line towards the aim by this times the aim's bearing (at most 90 deg); 0:
+    #: forwards (:meth:`flapsim.swim.continuous.HandRules.direction`)
+    hand_rule_aim: float = 0.0
+
+    def rule_acts(self, rule: str, phase: float) -> bool:
+        """Whether the hand rule ``rule`` acts at ``phase`` (:attr:`hand_rule_phases`)."""
+        phases = self.hand_rule_phases.get(rule)
+        return not phases or any(a <= phase < b for a, b in phases)
 
     @property
     def rate_hz(self) -> float:
@@ -323,12 +342,32 @@ def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
         raise DataFileError(f"{path}: {sorted(clash)} named both in [perturb] and [cycle]")
     return Stroke(str(raw.get("name", Path(path).stem)), period, posture, interp, keys,
                   str(raw.get("description", "")), str(path), perturbations, cycle,
-                  _parse_phases(raw.get("hand_rule_phases", []), path))
+                  _parse_phases(raw.get("hand_rule_phases", []), path),
+                  _parse_aim(raw.get("hand_rule_aim", 0.0), path))
 
 
-def _parse_phases(raw: object, path: str | Path) -> tuple:
-    """``hand_rule_phases``: a list of [start, end] phase pairs, 0 <= start < end <= 1."""
-    msg = f"{path}: hand_rule_phases must be a list of [start, end] phases, 0 <= start < end <= 1"
+def _parse_aim(raw: object, path: str | Path) -> float:
+    """``hand_rule_aim``: a number >= 0."""
+    if isinstance(raw, bool) or not isinstance(raw, int | float) or not 0.0 <= raw <= 10.0:
+        raise DataFileError(f"{path}: hand_rule_aim must be a number in [0, 10], got {raw!r}")
+    return float(raw)
+
+
+def _parse_phases(raw: object, path: str | Path) -> dict:
+    """``hand_rule_phases``: a list of [start, end] phase pairs, 0 <= start < end <= 1
+    (every hand rule), or a table of such lists by rule (:data:`HAND_RULES`)."""
+    if isinstance(raw, dict):
+        bad = sorted(set(raw) - set(HAND_RULES))
+        if bad:
+            raise DataFileError(f"{path}: hand_rule_phases names unknown rules {bad}; valid: "
+                                f"{', '.join(HAND_RULES)}")
+        return {r: _parse_pairs(v, path, f"hand_rule_phases.{r}") for r, v in raw.items()}
+    pairs = _parse_pairs(raw, path, "hand_rule_phases")
+    return {r: pairs for r in HAND_RULES} if pairs else {}
+
+
+def _parse_pairs(raw: object, path: str | Path, what: str) -> tuple:
+    msg = f"{path}: {what} must be a list of [start, end] phases, 0 <= start < end <= 1"
     if not isinstance(raw, list):
         raise DataFileError(msg)
     out = []
