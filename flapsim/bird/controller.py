@@ -16,6 +16,14 @@ Regression (:class:`Regressor`):
   unlike the average, it extrapolates the local trend, so it can ask for more than the
   neighbours did.
 
+Mirror images (:func:`mirror_samples`, on by default in :func:`load_controller`): the dove
+is mirror symmetric, so every sample's mirror image (left and right swapped: roll, sideways
+velocity, roll and yaw rates negated; the wingbeat's left and right DOF swapped) is an exact
+sample of the same bird, and the regression searches both. Without them the controller's
+answer to a request and to its mirror image differ as much as the answers themselves do
+(random samples are not mirror balanced), so the bird recovers from a push one way and
+not the other. The paper mirrors its capture data; this mirrors the database.
+
 Targets (:class:`CruiseTarget`, :class:`SteerTarget`) turn a task (hold altitude, speed and
 heading; or steer by alpha and climb by beta in one wingbeat) into S_target: a
 coordinated turn banks by atan(v omega / g) (the paper's eq. 5 with the centrifugal force
@@ -48,6 +56,29 @@ def weight_vector(w: tuple[float, float, float] = PAPER_WEIGHTS) -> np.ndarray:
     """diag(W) of eq. 3: (w1, w1, w2, w2, w2, w3, w3, w3)."""
     w1, w2, w3 = w
     return np.array([w1, w1, w2, w2, w2, w3, w3, w3], dtype=float)
+
+
+#: Sign of each reduced-state component in the mirror image (x forward, y left, z up):
+#: pitch, roll, body velocity x y z, body angular velocity x y z.
+MIRROR_STATE = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+
+
+def mirror_samples(dS: np.ndarray, dP: np.ndarray, P0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The samples followed by their mirror images: dS with roll, sideways velocity, roll
+    and yaw rates negated; dP such that P0 + dP' is the mirror wingbeat of P0 + dP (exact
+    for any P0, symmetric or not)."""
+    dS, dP, P0 = np.asarray(dS, float), np.asarray(dP, float), np.asarray(P0, float)
+    if dS.ndim != 2 or dS.shape[1] != 8 or dP.ndim != 2 or dP.shape[1] != N_PARAMS or len(dP) != len(dS):
+        raise InputError(f"mirror_samples needs dS (n, 8) and dP (n, {N_PARAMS}), got {dS.shape} and "
+                         f"{dP.shape}")
+    s, t = slice(0, -1, 2), slice(1, -1, 2)
+    from flapsim.bird.model import MIRROR_PERM
+
+    full = dP + P0
+    mirrored = full.copy()
+    mirrored[:, s] = full[:, s][:, MIRROR_PERM]
+    mirrored[:, t] = full[:, t][:, MIRROR_PERM]
+    return np.vstack([dS, dS * MIRROR_STATE]), np.vstack([dP, mirrored - P0])
 
 
 def default_k(n: int, fraction: float = 0.005) -> int:
@@ -709,9 +740,13 @@ def bundled_database_path():
 
 def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
                     weights: tuple[float, float, float] = PAPER_WEIGHTS,
-                    predict: str = "simulate", predict_every: int = 4) -> WingbeatController:
+                    predict: str = "simulate", predict_every: int = 4,
+                    mirror: bool = True) -> WingbeatController:
     """A controller over a database (default: the bundled one) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error.
+
+    ``mirror`` (default): the regression searches the samples and their mirror images
+    (:func:`mirror_samples`); ``k`` (default 0.5 %) counts among both.
 
     ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
     ``regression`` predicts it from the database's (S, S0) pairs and simulates P0 only
@@ -725,9 +760,12 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     for name in ("dS", "dP"):
         if name not in db.arrays:
             raise InputError(f"{path} has no {name!r} field: not a wingbeat controller database")
-    reg = Regressor(db.arrays["dS"], db.arrays["dP"], k=k, weights=weights, method=method)
     prov = db.header.get("provenance", {})
     P0 = np.asarray(prov.get("P0", with_tail_bias(p0(), FlightConfig.tail_bias_deg)), float)
+    dS, dP = db.arrays["dS"], db.arrays["dP"]
+    if mirror:
+        dS, dP = mirror_samples(dS, dP, P0)
+    reg = Regressor(dS, dP, k=k, weights=weights, method=method)
     ctl = WingbeatController(flight, reg, P0)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)

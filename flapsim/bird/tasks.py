@@ -154,8 +154,9 @@ class TaskResult:
         return self.status == "completed"
 
 
-def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None):
-    """The :class:`~flapsim.bird.flight.DoveFlight` and learned controller for ``task``."""
+def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None, mirror: bool = True):
+    """The :class:`~flapsim.bird.flight.DoveFlight` and learned controller for ``task``
+    (``mirror``: the regression also searches the samples' mirror images, the default)."""
     from flapsim.bird.controller import load_controller
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
@@ -163,7 +164,7 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
     fl = DoveFlight(Dove.load(feathers=task.feathers), wind=tuple(task.wind), flow=tuple(task.flow),
                     plucked=tuple(task.plucked))
     try:
-        ctl = load_controller(fl, db, method=method, k=k)
+        ctl = load_controller(fl, db, method=method, k=k, mirror=mirror)
     except BaseException:
         fl.close()
         raise
@@ -171,7 +172,8 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
 
 
 def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
-             record: bool = False, progress: bool = False, controller=None) -> TaskResult:
+             record: bool = False, progress: bool = False, controller=None,
+             mirror: bool = True) -> TaskResult:
     """Fly ``task`` with the learned controller over database ``db`` (default: bundled);
     ``controller``: an already built one (its flight's disturbances must match the task)."""
     from flapsim.bird.controller import trim_of_base_flight
@@ -179,7 +181,7 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
 
     own = controller is None
     if own:
-        fl, ctl = build_flight(task, db, method, k)
+        fl, ctl = build_flight(task, db, method, k, mirror)
     else:
         ctl = controller
         fl = ctl.flight

@@ -34,6 +34,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
                    help="regression of the wingbeat controller (default lwlr; knn: the paper's)")
     p.add_argument("--k", type=int, default=None, help="neighbours (default 0.5%% of the database)")
+    p.add_argument("--no-mirror", dest="mirror", action="store_false",
+                   help="the regression searches the database's samples only, not also their mirror "
+                        "images (the default searches both: the dove is symmetric)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
@@ -107,7 +110,8 @@ def run(args: argparse.Namespace) -> dict:
         from flapsim.validate import require_gl
 
         require_gl()
-    opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, layers=args.layers,
+    opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, mirror=args.mirror,
+                                 layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
     if args.feathers != "rigid" and not args.db:

@@ -32,6 +32,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "this dove level: see the README)")
     p.add_argument("--k", type=int, default=None,
                    help="neighbours of the regression (default 0.5%% of the database)")
+    p.add_argument("--no-mirror", dest="mirror", action="store_false",
+                   help="the regression searches the database's samples only, not also their mirror "
+                        "images (the default searches both: the dove is symmetric)")
     p.add_argument("--predict", choices=("simulate", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper) or predict it from "
@@ -154,7 +157,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     try:
         if args.controller == "learned":
             ctl = load_controller(fl, args.db, method=args.method, k=args.k,
-                                  predict=getattr(args, "predict", "simulate"))
+                                  predict=getattr(args, "predict", "simulate"), mirror=args.mirror)
         else:
             ctl = BaseController(fl, with_tail_bias(p0(), cfg.tail_bias_deg))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
@@ -172,6 +175,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
         "mass": dove.mass,
         "db": str(args.db) if args.db else ("bundled" if args.controller == "learned" else None),
         "method": args.method if args.controller == "learned" else None,
+        "mirror": args.mirror if args.controller == "learned" else None,
         "predict": getattr(ctl, "predict", None),
         "k": getattr(getattr(ctl, "regressor", None), "k", None),
         "database_samples": getattr(getattr(ctl, "regressor", None), "n", None),
@@ -199,12 +203,12 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     task = Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats)
     predict = getattr(args, "predict", "simulate")
     if predict == "simulate":
-        r = fly_task(task, args.db, method=args.method, k=args.k, progress=True,
+        r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
                      record=bool(args.video or args.out))
     else:
         from flapsim.bird.controller import attach_predictor
 
-        fl, ctl = build_flight(task, args.db, args.method, args.k)
+        fl, ctl = build_flight(task, args.db, args.method, args.k, args.mirror)
         try:
             attach_predictor(ctl, args.db)
             r = fly_task(task, progress=True, record=bool(args.video or args.out), controller=ctl)
@@ -215,7 +219,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     result = {
         "controller": "learned", "path": args.path, "path_length": path.length,
         "completed": completed, "status": r.status, "reason": r.reason,
-        "progress": m["progress_m"], "model_hash": r.model_hash, "method": args.method,
+        "progress": m["progress_m"], "model_hash": r.model_hash, "method": args.method, "mirror": args.mirror,
         "predict": predict,
         "k": r.k, "database_samples": r.database_samples,
         "db": str(args.db) if args.db else "bundled", **m,

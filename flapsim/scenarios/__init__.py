@@ -59,6 +59,8 @@ class EvalOptions:
     """Flight: controller database (None: the bundled one)."""
     method: str = "lwlr"
     k: int | None = None
+    mirror: bool = True
+    """Flight: the regression also searches the samples' mirror images."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

@@ -46,7 +46,7 @@ def _summary(r) -> dict:
 def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
     from flapsim.bird.tasks import fly_task
 
-    r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=bool(opt.video_dir))
+    r = fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=bool(opt.video_dir))
     files = _outputs(sc, opt, task, r, tag)
     return r, files
 
@@ -137,7 +137,7 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
         task = Task(paths.straight(40.0 if opt.quick else 60.0),
                     pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M,
                     feathers=opt.feathers)
-        r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=bool(opt.video_dir))
+        r = fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=bool(opt.video_dir))
         files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
         sim += r.metrics["simulated_s"]
         back = task.path.distance(r.positions[-1])
@@ -178,7 +178,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
         path = leader if i == 0 else paths.perturbed_copy(leader, off, p["jitter_m"], rng,
                                                           horizontal=True)
         task = Task(path, feathers=opt.feathers)
-        r = fly_task(task, opt.db, method=opt.method, k=opt.k, record=True)
+        r = fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=True)
         results.append(r)
         tracks.append(_track(r))
         if not opt.video_dir:

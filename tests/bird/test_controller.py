@@ -49,6 +49,14 @@ def test_bundled_database_is_for_this_model_and_finished():
                        require_finalized=True)
     assert db.header["kind"] in ("dove-phase1", "dove-phase2")
     assert db.n >= 1000 and db.arrays["dP"].shape == (db.n, 29)
+    # the regression searches every sample and its mirror image; k is 0.5 % of both
+    fl = DoveFlight(Dove.load())
+    try:
+        assert load_controller(fl).regressor.n == 2 * db.n
+        assert load_controller(fl).regressor.k == round(0.005 * 2 * db.n)
+        assert load_controller(fl, mirror=False).regressor.n == db.n
+    finally:
+        fl.close()
 
 
 def test_level_cruise_holds_altitude_speed_heading_from_a_roll_error(flight, controller, trim):
@@ -112,6 +120,30 @@ def test_target_state_banks_into_a_coordinated_turn(trim):
     S0 = target_state(trim, v, heading=1.0, climb=0.0, turn_rate=0.0)
     assert S0[0] == pytest.approx(np.arctan2(-trim.S[4], trim.S[2]), abs=1e-9)
     np.testing.assert_allclose(S0[5:8], trim.S[5:8], atol=1e-12)
+
+
+def test_a_mirrored_sample_is_the_mirror_birds_flight(flight):
+    # the database's mirror images (MIRROR_STATE, mirror_params) are samples only if the dove
+    # flies them: from a rolled, side-slipping, yawing state with a lopsided wingbeat, and
+    # from the mirror state with the mirror wingbeat, the two ends are mirror images (the
+    # model is symmetric to round-off; one wingbeat amplifies it to < 1e-9)
+    from flapsim.bird.controller import MIRROR_STATE
+    from flapsim.bird.wingbeat import mirror_params, p0
+
+    P = p0()
+    P[0], P[3], P[27] = 1.05, 0.04, 0.02  # left shoulder bigger and shifted; tail spread
+    ends = []
+    for sign, p in ((1.0, P), (-1.0, mirror_params(P))):
+        flight.reset(p=p)
+        d = flight.data
+        r = sign * 0.15
+        d.qpos[3:7] = (np.cos(r / 2), np.sin(r / 2), 0.0, 0.0)
+        d.qvel[1] = sign * 0.4
+        d.qvel[3], d.qvel[5] = sign * 0.5, sign * -0.3
+        mujoco.mj_forward(flight.model, d)
+        ends.append(cycle.fly_cycle(flight, None, p).S)
+    assert abs(ends[0][1]) > 0.05  # the start's roll is not gone
+    np.testing.assert_allclose(ends[1], ends[0] * MIRROR_STATE, atol=1e-9)
 
 
 def test_foreign_and_other_model_databases_are_refused(flight, tmp_path):

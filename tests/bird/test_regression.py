@@ -90,3 +90,40 @@ def test_bad_inputs_are_one_line_errors():
     reg = Regressor(np.zeros((3, 8)), np.zeros((3, 29)))
     with pytest.raises(InputError):
         reg.predict(np.full(8, np.nan))
+
+
+def test_mirror_samples_swap_sides_and_make_the_regression_mirror_symmetric():
+    from flapsim.bird.controller import MIRROR_STATE, mirror_samples
+    from flapsim.bird.wingbeat import N_PARAMS, mirror_params, p0
+
+    # one hand-made sample: left shoulder elevation scaled 1.1 (s index 0), right elbow
+    # shifted 0.05 rad (DOF 6 + 3 -> t index 2 * 9 + 1), rolled 0.1 rad right wing down,
+    # sliding left 0.2 m/s and yawing left 0.3 rad/s; its mirror is the right shoulder at 1.1,
+    # the LEFT elbow at 0.05, rolled 0.1 left, sliding right, yawing right
+    P0 = p0()
+    dP = np.zeros((1, N_PARAMS))
+    dP[0, 0], dP[0, 19] = 0.1, 0.05
+    dS = np.array([[0.02, 0.1, 0.0, 0.2, 0.0, 0.0, 0.0, 0.3]])
+    S2, P2 = mirror_samples(dS, dP, P0)
+    np.testing.assert_array_equal(S2[0], dS[0])
+    np.testing.assert_array_equal(S2[1], [0.02, -0.1, 0.0, -0.2, 0.0, -0.0, 0.0, -0.3])
+    expect = np.zeros(N_PARAMS)
+    expect[12], expect[7] = 0.1, 0.05  # right shoulder's scale (DOF 6), left elbow's shift (DOF 3)
+    np.testing.assert_allclose(P2[1], expect, atol=1e-15)  # (1 + 0.1) - 1 round-off
+    # over random samples, the regression over samples + mirrors answers a mirrored request
+    # with the mirrored wingbeat (round-off only: the same neighbours, mirrored)
+    rng = np.random.default_rng(3)
+    dS = rng.normal(size=(800, 8)) * np.array([0.15, 0.2, 1.0, 2.0, 1.0, 3.0, 1.5, 4.0])
+    dP = rng.normal(size=(800, N_PARAMS)) * 0.05
+    reg = Regressor(*mirror_samples(dS, dP, P0), k=40, method="lwlr")
+    lopsided = Regressor(dS, dP, k=40, method="lwlr")
+    worst_lopsided = 0.0
+    for _ in range(10):
+        x = rng.normal(size=8) * np.array([0.05, 0.1, 0.3, 0.5, 0.3, 1.0, 0.5, 1.0])
+        a = reg.predict(x)
+        b = mirror_params(P0 + reg.predict(x * MIRROR_STATE)) - P0
+        np.testing.assert_allclose(b, a, atol=1e-9)
+        a = lopsided.predict(x)
+        b = mirror_params(P0 + lopsided.predict(x * MIRROR_STATE)) - P0
+        worst_lopsided = max(worst_lopsided, float(np.abs(a - b).max()))
+    assert worst_lopsided > 1e-3  # without the mirrors random samples are not symmetric
