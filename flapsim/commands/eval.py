@@ -23,6 +23,17 @@ TABLE1_SCENARIO = "figure8"
 """The paper's Table I path: a figure of eight with ascending and descending turns."""
 
 
+def check_regression_options(args: argparse.Namespace) -> None:
+    """--clip-request and --state-weight (fly and eval): one-line errors."""
+    import math
+
+    q, w = args.clip_request, args.state_weight
+    if not (math.isfinite(q) and 0.0 <= q < 0.5):
+        raise InputError(f"--clip-request must be a share 0 <= Q < 0.5, got {q}")
+    if not (math.isfinite(w) and 0.0 <= w <= 1e3):
+        raise InputError(f"--state-weight must be 0..1000, got {w}")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default=None, metavar="NAME",
                    help=f"scenario name, several comma-separated, or 'all' (default {DEFAULT_SCENARIO}; "
@@ -37,6 +48,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="the regression searches the database's samples only, not also their mirror "
                         "images (the default searches both: the dove is symmetric)")
+    p.add_argument("--clip-request", type=float, default=0.0, metavar="Q",
+                   help="the regression clips each component of a requested state change to the "
+                        "[Q, 1-Q] quantiles of the database's (e.g. 0.02; default 0: no clip): a "
+                        "request far outside the samples is otherwise extrapolated (see the README)")
+    p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
+                   help="the regression chooses neighbours by dS and, with weight W, by the "
+                        "wingbeat's start state (default 0: dS only, the paper's; for databases "
+                        "that mix cruise and disturbed pre-states, see the README)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
@@ -110,7 +129,9 @@ def run(args: argparse.Namespace) -> dict:
         from flapsim.validate import require_gl
 
         require_gl()
+    check_regression_options(args)
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, mirror=args.mirror,
+                                 clip_request=args.clip_request, state_weight=args.state_weight,
                                  layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
@@ -288,9 +309,12 @@ def _table1(args: argparse.Namespace, opts) -> dict:
               backend=args.backend, address=args.address, kind="dove-phase1")
         dbs[n] = out
     runs, labels = [], []
+    # k is a share of the samples the regression searches: with the mirror images, twice the
+    # database's
+    per = 2 if opts.mirror else 1
     for n in sizes:
         o = copy.copy(opts)
-        o.db, o.k = str(dbs[n]), max(1, round(0.005 * n))
+        o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
     base = 10000 if 10000 in dbs else max(dbs)
@@ -298,11 +322,12 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         if kp == 0.5:
             continue
         o = copy.copy(opts)
-        o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * base))
+        o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)
-    print(f"\nTable I on {name} ({opts.method}): per-wingbeat means")
+    print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}): "
+          "per-wingbeat means")
     head = (f"{'samples':>8} {'k %':>5} {'k':>5} {'status':<10} {'Ep m':>7} {'Er rad':>7} "
             f"{'Eo rad':>7} {'Ef m':>7}")
     print(head)

@@ -217,3 +217,19 @@ def test_sigterm_stops_eval_and_its_workers_leaving_no_file(tmp_path, sigterm_wi
     assert err.strip().splitlines()[-1] == "flapsim eval: terminated (SIGTERM)"
     assert not alive
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["plots"]
+
+
+@pytest.mark.slow
+def test_table1_trains_its_databases_and_counts_k_among_the_searched_samples(tmp_path, capsys):
+    # tiny databases (100 and 200 samples) on the quick figure of eight: the point is the
+    # sweep's bookkeeping, not the flights. k is the paper's share of the samples the
+    # regression searches: with the mirror images 2n, so 0.5 % of 2 x 200 = 2; the k sweep is on
+    # the largest database: 2 / 1 / 0.3 % of 400 = 8 / 4 / 1
+    js = tmp_path / "t1.json"
+    main(["eval", "--table1", "--sizes", "100,200", "--quick", "--cache", str(tmp_path / "dbs"),
+          "--workers", "2", "--json", str(js)])
+    rows = json.loads(js.read_text())["table1"]
+    assert [(r["samples"], r["k_percent"], r["k"]) for r in rows] == [
+        (100, 0.5, 1), (200, 0.5, 2), (200, 2.0, 8), (200, 1.0, 4), (200, 0.3, 1)]
+    assert (tmp_path / "dbs" / "phase1_200.db").exists()
+    assert "Table I on figure8" in capsys.readouterr().out
