@@ -726,9 +726,9 @@ def cruise_metrics(f: ControlledFlight, target: CruiseTarget) -> dict:
 # -- loading --------------------------------------------------------------------------------
 
 #: The bundled controller database, made by ``flapsim train --samples 10000 --pre-pitch-deg 10
-#: --pre-roll-deg 10 --seed 1 --out dove_controller.db`` (phase 1; 236-277 s on two idle
-#: cores; 4.6 MB: float64). Regenerate it after any change to the dove model: a database of
-#: another model is refused by its model hash.
+#: --pre-roll-deg 10 --seed 1 --float32 --out dove_controller.db`` (phase 1; 236-277 s on two
+#: idle cores; 2.3 MB: float32, exactly the float64 run's samples rounded). Regenerate it after
+#: any change to the dove model: a database of another model is refused by its model hash.
 BUNDLED_DB = "dove_controller.db"
 
 
