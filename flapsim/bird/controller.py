@@ -15,6 +15,9 @@ Regression (:class:`Regressor`):
   affine fit dP ~ a + B (dS_i - dS), ridge-regularised, evaluated at dS, i.e. ``a``):
   unlike the average, it extrapolates the local trend, so it can ask for more than the
   neighbours did.
+* requests are first clipped, per dimension, to the [2 %, 98 %] quantiles of the
+  database's dS (``clip_request``, :data:`DEFAULT_CLIP_REQUEST`): the local fit is only
+  trusted where its samples are.
 
 Mirror images (:func:`mirror_samples`, on by default in :func:`load_controller`): the dove
 is mirror symmetric, so every sample's mirror image (left and right swapped: roll, sideways
@@ -81,17 +84,41 @@ def mirror_samples(dS: np.ndarray, dP: np.ndarray, P0: np.ndarray) -> tuple[np.n
     return np.vstack([dS, dS * MIRROR_STATE]), np.vstack([dP, mirrored - P0])
 
 
+#: The share of the database's dS left outside each dimension's range to which a request is
+#: clipped by default (:class:`Regressor`'s ``clip_request``): measured on the flight suite with
+#: the bundled database, k = 100, 0.02 keeps figure8, figure8-level, wind-steady and the flock
+#: to three digits, completes wind-gusts (lost without) and survives 3 N pushes from the side
+#: (lost without); 0.05 and 0.1 trade the sideways pushes for the upward and forward ones.
+DEFAULT_CLIP_REQUEST = 0.02
+
+
 def default_k(n: int, fraction: float = 0.005) -> int:
     """The paper's best k: 0.5 % of the samples (at least 1)."""
     return max(1, int(round(fraction * n)))
 
 
 class Regressor:
-    """k-NN (eq. 3-4) or locally weighted linear regression from dS to dP."""
+    """k-NN (eq. 3-4) or locally weighted linear regression from dS to dP.
+
+    ``context`` (n, 8), optional: each sample's start state S; with ``context_weight`` > 0
+    the neighbours are found by the distance over dS AND the start state,
+    d = |dS - dS_i|_W^2 + context_weight |S - S_i|_W^2 (each part in units of its spread,
+    the paper's weights on top), and LWLR fits dP affine in both, so a sample from a state
+    unlike the bird's (a sideslip, a steep bank) is not a neighbour of a cruise request just
+    because its dS is. :meth:`predict` then needs the bird's current S.
+
+    ``clip_request`` q > 0: each component of a requested dS is first clipped to the
+    [q, 1 - q] quantiles of the database's dS. A local (LWLR) model holds only where its
+    samples are; a request far outside them (a path target asking 40 deg of roll in one
+    wingbeat, where 96 % of the bundled samples change it by less than 31) is extrapolated into a
+    wingbeat that rolls the bird 1-4 deg, while the clipped request is answered by a
+    wingbeat the database has seen do it (measured after a 3 N sideways push: 11 deg).
+    """
 
     def __init__(self, dS: np.ndarray, dP: np.ndarray, k: int | None = None,
                  weights: tuple[float, float, float] = PAPER_WEIGHTS, method: str = "knn",
-                 ridge: float = 0.03, normalize: bool = True) -> None:
+                 ridge: float = 0.03, normalize: bool = True, context: np.ndarray | None = None,
+                 context_weight: float = 0.0, clip_request: float = 0.0) -> None:
         dS, dP = np.asarray(dS, float), np.asarray(dP, float)
         if dS.ndim != 2 or dS.shape[1] != 8 or dP.ndim != 2 or len(dP) != len(dS):
             raise InputError(f"regression needs dS (n, 8) and dP (n, m), got {dS.shape} and {dP.shape}")
@@ -101,6 +128,10 @@ class Regressor:
             raise InputError("the database holds non-finite samples")
         if method not in ("knn", "lwlr"):
             raise InputError(f"regression method must be knn or lwlr, got {method!r}")
+        if not (np.isfinite(clip_request) and 0.0 <= clip_request < 0.5):
+            raise InputError(f"the request clip must be a share 0 <= q < 0.5, got {clip_request}")
+        if not (np.isfinite(context_weight) and context_weight >= 0):
+            raise InputError(f"the state weight must be a finite number >= 0, got {context_weight}")
         self.dS, self.dP = dS, dP
         self.w = weight_vector(weights)
         if normalize:
@@ -108,45 +139,89 @@ class Regressor:
             self.w = self.w / np.maximum(dS.std(axis=0), 1e-12) ** 2
         self.normalize = normalize
         self.sqrt_w = np.sqrt(self.w)
+        self.context = None
+        self.context_weight = float(context_weight)
+        X = dS * self.sqrt_w
+        if context_weight > 0:
+            if context is None:
+                raise InputError("a state weight > 0 needs each sample's start state S")
+            C = np.asarray(context, float)
+            if C.shape != dS.shape or not np.all(np.isfinite(C)):
+                raise InputError(f"the start states must be {dS.shape} finite numbers, got {C.shape}")
+            wc = weight_vector(weights) * context_weight
+            if normalize:
+                wc = wc / np.maximum(C.std(axis=0), 1e-12) ** 2
+            self.context, self.sqrt_wc = C, np.sqrt(wc)
+            X = np.hstack([X, C * self.sqrt_wc])
         self.k = min(len(dS), k if k is not None else default_k(len(dS)))
         if self.k < 1:
             raise InputError(f"k must be >= 1, got {k}")
         self.method = method
         self.ridge = ridge
-        self.tree = cKDTree(dS * self.sqrt_w)
+        self.tree = cKDTree(X)
         self.dP_lo, self.dP_hi = dP.min(axis=0), dP.max(axis=0)
+        self.clip_request = float(clip_request)
+        self.dS_lo = self.dS_hi = None
+        if clip_request > 0:
+            self.dS_lo, self.dS_hi = np.quantile(dS, [clip_request, 1.0 - clip_request], axis=0)
 
     @property
     def n(self) -> int:
         return len(self.dS)
 
-    def neighbours(self, x: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(weighted squared distances (k,), indices (k,)) of the k nearest samples."""
+    @property
+    def conditioned(self) -> bool:
+        """Whether :meth:`predict` needs the current start state (``context_weight`` > 0)."""
+        return self.context is not None
+
+    def _query_point(self, x: np.ndarray, s: np.ndarray | None) -> np.ndarray:
+        q = np.asarray(x, float) * self.sqrt_w
+        if self.context is None:
+            return q
+        s = np.asarray(s, float) if s is not None else None
+        if s is None or s.shape != (8,) or not np.all(np.isfinite(s)):
+            raise InputError(f"a state-conditioned regression needs the current state S (8 finite "
+                             f"numbers), got {s}")
+        return np.concatenate([q, s * self.sqrt_wc])
+
+    def neighbours(self, x: np.ndarray, k: int | None = None, s: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """(weighted squared distances (k,), indices (k,)) of the k nearest samples (to dS
+        ``x`` and, when conditioned, start state ``s``)."""
         k = k or self.k
-        dist, idx = self.tree.query(np.asarray(x, float) * self.sqrt_w, k=k)
+        dist, idx = self.tree.query(self._query_point(x, s), k=k)
         return np.atleast_1d(dist) ** 2, np.atleast_1d(idx)
 
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        """dP for a differential state ``x`` (8,)."""
+    def predict(self, x: np.ndarray, s: np.ndarray | None = None) -> np.ndarray:
+        """dP for a differential state ``x`` (8,) (from start state ``s`` (8,): needed when
+        :attr:`conditioned`, ignored otherwise)."""
         x = np.asarray(x, float)
         if x.shape != (8,) or not np.all(np.isfinite(x)):
             raise InputError(f"a differential state has 8 finite numbers, got {x}")
+        if self.dS_lo is not None:
+            # ask for no more than the database's wingbeats did (see ``clip_request``)
+            x = np.clip(x, self.dS_lo, self.dS_hi)
         if self.method == "lwlr":
             # a local linear model may extrapolate: never past the database's own wingbeats
-            return np.clip(self._lwlr(x), self.dP_lo, self.dP_hi)
-        d2, idx = self.neighbours(x)
+            return np.clip(self._lwlr(x, s), self.dP_lo, self.dP_hi)
+        d2, idx = self.neighbours(x, s=s)
         return idw_average(d2, self.dP[idx])
 
-    def _lwlr(self, x: np.ndarray) -> np.ndarray:
-        k = max(self.k, 4 * 9)  # an affine fit in 8 inputs needs a neighbourhood of > 9
-        d2, idx = self.neighbours(x, min(k, self.n))
+    def _lwlr(self, x: np.ndarray, s: np.ndarray | None = None) -> np.ndarray:
+        q = self._query_point(x, s)
+        m = len(q)
+        k = max(self.k, 4 * (m + 1))  # an affine fit in m inputs needs a neighbourhood of > m + 1
+        dist, idx = self.tree.query(q, k=min(k, self.n))
+        d2, idx = np.atleast_1d(dist) ** 2, np.atleast_1d(idx)
         h2 = max(float(d2.max()), 1e-12)
         wts = np.exp(-d2 / h2)  # Gaussian kernel with the neighbourhood's radius
         X = (self.dS[idx] - x) * self.sqrt_w
+        if self.context is not None:
+            X = np.hstack([X, (self.context[idx] - s) * self.sqrt_wc])
         A = np.hstack([np.ones((len(idx), 1)), X])
         Aw = A * wts[:, None]
         G = A.T @ Aw
-        G[1:, 1:] += self.ridge * np.trace(G[1:, 1:]) / 8 * np.eye(8) + 1e-12 * np.eye(8)
+        G[1:, 1:] += self.ridge * np.trace(G[1:, 1:]) / m * np.eye(m) + 1e-12 * np.eye(m)
         coef = np.linalg.solve(G, Aw.T @ self.dP[idx])
         return coef[0]
 
@@ -590,6 +665,11 @@ class WingbeatController:
         ``push`` acts on the wingbeat flown only: the controller's prediction cannot see it
         coming."""
         fl = self.flight
+        S_now = None
+        if self.regressor.conditioned:
+            if snap is not None:
+                cycle.restore(fl, snap)
+            S_now = fl.reduced_state()  # the wingbeat's start state, as the samples' S
         snap = snap or cycle.snapshot(fl)
         if self.predictor is None:
             e0 = cycle.fly_cycle(fl, snap, self.P0, self.ref)
@@ -597,7 +677,7 @@ class WingbeatController:
             e0 = self.predictor.reference(self, snap)
         S_t = np.asarray(target(e0), float)
         dS = S_t - e0.S
-        P = self.P0 + self.regressor.predict(dS)
+        P = self.P0 + self.regressor.predict(dS, S_now)
         Pp = project_to_ranges(self.ref, P, self.lo, self.hi)
         projected = bool(np.max(np.abs(Pp - P)) > 1e-12)
         end = cycle.fly_cycle(fl, snap, Pp, self.ref, record=record, push=push)
@@ -741,12 +821,19 @@ def bundled_database_path():
 def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
                     weights: tuple[float, float, float] = PAPER_WEIGHTS,
                     predict: str = "simulate", predict_every: int = 4,
-                    mirror: bool = True) -> WingbeatController:
+                    mirror: bool = True, state_weight: float = 0.0,
+                    clip_request: float = DEFAULT_CLIP_REQUEST) -> WingbeatController:
     """A controller over a database (default: the bundled one) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error.
 
     ``mirror`` (default): the regression searches the samples and their mirror images
     (:func:`mirror_samples`); ``k`` (default 0.5 %) counts among both.
+
+    ``state_weight`` > 0: the neighbours are chosen by dS and by the wingbeat's start state
+    (the samples' S field; :class:`Regressor`'s ``context_weight``); 0 (default): by dS only,
+    the paper's eq. 3. ``clip_request`` q > 0 (default :data:`DEFAULT_CLIP_REQUEST`):
+    requests are clipped to the [q, 1 - q] quantiles of the database's dS first
+    (:class:`Regressor`); 0: not clipped, the paper's.
 
     ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
     ``regression`` predicts it from the database's (S, S0) pairs and simulates P0 only
@@ -763,12 +850,27 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     prov = db.header.get("provenance", {})
     P0 = np.asarray(prov.get("P0", with_tail_bias(p0(), FlightConfig.tail_bias_deg)), float)
     dS, dP = db.arrays["dS"], db.arrays["dP"]
+    S = None
+    if state_weight:
+        if "S" not in db.arrays:
+            raise InputError(f"{path} has no 'S' field: a state weight needs the samples' start states")
+        S = db.arrays["S"]
     if mirror:
         dS, dP = mirror_samples(dS, dP, P0)
-    reg = Regressor(dS, dP, k=k, weights=weights, method=method)
+        S = None if S is None else np.vstack([S, S * MIRROR_STATE])
+    reg = Regressor(dS, dP, k=k, weights=weights, method=method, context=S, context_weight=state_weight,
+                    clip_request=clip_request)
     ctl = WingbeatController(flight, reg, P0)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
+    return ctl
+
+
+def set_regression(ctl: WingbeatController, db_path=None, **options) -> WingbeatController:
+    """Rebuild ``ctl``'s regression over ``db_path`` with :func:`load_controller`'s regression
+    options (``method``, ``k``, ``weights``, ``mirror``, ``state_weight``, ``clip_request``): for a
+    controller built elsewhere (:func:`flapsim.bird.tasks.build_flight`)."""
+    ctl.regressor = load_controller(ctl.flight, db_path, **options).regressor
     return ctl
 
 

@@ -584,3 +584,62 @@ def finalize_database(path: str | os.PathLike, n_samples: int | None = None,
                 rejected[k] = rejected.get(k, 0) + v
     _write_final(path, fin, index, arrays, rejected, examined)
     return load_database(path)
+
+
+#: Provenance entries the sources of a merge must share (besides the model hash): a sample's
+#: dP is relative to the reference wingbeat P0, so samples around different references or
+#: timesteps do not belong in one regression.
+MERGE_SAME = ("P0", "reference_coef", "reference_period", "timestep")
+
+#: Fields a merge adds: which source (0, 1, ...) and which sample index there.
+MERGE_FIELDS = ("part", "source_index")
+
+
+def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
+                    same: tuple[str, ...] = MERGE_SAME) -> Database:
+    """Write the samples of the finished databases ``paths`` into one finished database
+    ``out`` (atomically: a temporary file renamed), samples numbered 0.. in the order given,
+    with per-sample fields ``part`` (which source) and ``source_index``. The header keeps the
+    common model hash and provenance entries ``same`` and, under ``provenance.parts``, every
+    source's path, sha256, sample count and whole header. Sources of another model, with
+    other ``same`` entries, other fields, or unfinished, are one-line errors."""
+    from flapsim.bird.sampling import file_sha256
+
+    if len(paths) < 2:
+        raise InputError(f"a merge needs at least two databases, got {len(paths)}")
+    dbs = [load_database(p, require_finalized=True) for p in paths]
+    first, p0 = dbs[0], Path(paths[0])
+    names = sorted(set(first.arrays) - set(MERGE_FIELDS))
+    prov0 = first.header.get("provenance") or {}
+    for p, db in zip(paths[1:], dbs[1:], strict=True):
+        if db.header.get("model_hash") != first.header.get("model_hash"):
+            raise InputError(f"cannot merge {p} (model {db.header.get('model_hash')}) with {p0} (model "
+                             f"{first.header.get('model_hash')}): databases of different doves")
+        other = sorted(set(db.arrays) - set(MERGE_FIELDS))
+        if other != names:
+            raise InputError(f"cannot merge {p} (fields {', '.join(other)}) with {p0} (fields "
+                             f"{', '.join(names)})")
+        for name in names:
+            if db.arrays[name].shape[1:] != first.arrays[name].shape[1:]:
+                raise InputError(f"cannot merge {p} with {p0}: field {name!r} has shape "
+                                 f"{db.arrays[name].shape[1:]} there, {first.arrays[name].shape[1:]} here")
+        prov = db.header.get("provenance") or {}
+        for key in same:
+            if canonical_json(prov.get(key)) != canonical_json(prov0.get(key)):
+                raise InputError(f"cannot merge {p} with {p0}: their provenance differs in {key!r} "
+                                 "(another reference wingbeat or timestep)")
+    arrays = {name: np.concatenate([db.arrays[name] for db in dbs]) for name in names}
+    arrays["part"] = np.concatenate([np.full(db.n, i, np.int64) for i, db in enumerate(dbs)])
+    arrays["source_index"] = np.concatenate([db.index.astype(np.int64) for db in dbs])
+    rejected: dict[str, int] = {}
+    for db in dbs:
+        for k, v in db.rejected.items():
+            rejected[k] = rejected.get(k, 0) + int(v)
+    parts = [{"path": str(Path(p).resolve()), "sha256": file_sha256(p), "samples": db.n,
+              "header": db.header} for p, db in zip(paths, dbs, strict=True)]
+    header = {"kind": "merged", "model_hash": first.header.get("model_hash"), "seed": None,
+              "provenance": {**{k: prov0[k] for k in same if k in prov0}, "parts": parts},
+              "examined": int(sum(int(db.header.get("examined", db.n)) for db in dbs))}
+    n = int(arrays["part"].shape[0])
+    save_database(out, header, np.arange(n, dtype=np.int64), arrays, rejected)
+    return load_database(out)

@@ -48,10 +48,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="the regression searches the database's samples only, not also their mirror "
                         "images (the default searches both: the dove is symmetric)")
-    p.add_argument("--clip-request", type=float, default=0.0, metavar="Q",
+    p.add_argument("--clip-request", type=float, default=0.02, metavar="Q",
                    help="the regression clips each component of a requested state change to the "
-                        "[Q, 1-Q] quantiles of the database's (e.g. 0.02; default 0: no clip): a "
-                        "request far outside the samples is otherwise extrapolated (see the README)")
+                        "[Q, 1-Q] quantiles of the database's (default 0.02; 0: no clip, the paper's): "
+                        "a request far outside the samples is otherwise extrapolated (see the README)")
     p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
                    help="the regression chooses neighbours by dS and, with weight W, by the "
                         "wingbeat's start state (default 0: dS only, the paper's; for databases "

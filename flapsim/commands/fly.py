@@ -35,6 +35,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="the regression searches the database's samples only, not also their mirror "
                         "images (the default searches both: the dove is symmetric)")
+    p.add_argument("--clip-request", type=float, default=0.02, metavar="Q",
+                   help="the regression clips each component of a requested state change to the "
+                        "[Q, 1-Q] quantiles of the database's (default 0.02; 0: no clip, the paper's): "
+                        "a request far outside the samples is otherwise extrapolated (see the README)")
+    p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
+                   help="the regression chooses neighbours by dS and, with weight W, by the "
+                        "wingbeat's start state (default 0: dS only, the paper's; for databases "
+                        "that mix cruise and disturbed pre-states, see the README)")
     p.add_argument("--predict", choices=("simulate", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper) or predict it from "
@@ -88,6 +96,9 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--roll-deg must be within -90..90, got {args.roll_deg}")
     if args.k is not None and args.k < 1:
         raise InputError(f"--k must be >= 1, got {args.k}")
+    from flapsim.commands.eval import check_regression_options
+
+    check_regression_options(args)
     cfg = FlightConfig(speed=args.speed, pitch_deg=args.pitch_deg, tail_bias_deg=args.tail_bias_deg,
                        **({"table": args.table} if args.table else {}))
     if args.path:
@@ -157,7 +168,8 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     try:
         if args.controller == "learned":
             ctl = load_controller(fl, args.db, method=args.method, k=args.k,
-                                  predict=getattr(args, "predict", "simulate"), mirror=args.mirror)
+                                  predict=getattr(args, "predict", "simulate"), mirror=args.mirror,
+                                  clip_request=args.clip_request, state_weight=args.state_weight)
         else:
             ctl = BaseController(fl, with_tail_bias(p0(), cfg.tail_bias_deg))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
@@ -176,6 +188,8 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
         "db": str(args.db) if args.db else ("bundled" if args.controller == "learned" else None),
         "method": args.method if args.controller == "learned" else None,
         "mirror": args.mirror if args.controller == "learned" else None,
+        "clip_request": args.clip_request if args.controller == "learned" else None,
+        "state_weight": args.state_weight if args.controller == "learned" else None,
         "predict": getattr(ctl, "predict", None),
         "k": getattr(getattr(ctl, "regressor", None), "k", None),
         "database_samples": getattr(getattr(ctl, "regressor", None), "n", None),
@@ -202,15 +216,22 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     path = args.flight_path
     task = Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats)
     predict = getattr(args, "predict", "simulate")
-    if predict == "simulate":
+    from flapsim.bird.controller import DEFAULT_CLIP_REQUEST
+
+    custom = args.clip_request != DEFAULT_CLIP_REQUEST or bool(args.state_weight)
+    if predict == "simulate" and not custom:
         r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
                      record=bool(args.video or args.out))
     else:
-        from flapsim.bird.controller import attach_predictor
+        from flapsim.bird.controller import attach_predictor, set_regression
 
         fl, ctl = build_flight(task, args.db, args.method, args.k, args.mirror)
         try:
-            attach_predictor(ctl, args.db)
+            if custom:
+                set_regression(ctl, args.db, method=args.method, k=args.k, mirror=args.mirror,
+                               clip_request=args.clip_request, state_weight=args.state_weight)
+            if predict != "simulate":
+                attach_predictor(ctl, args.db)
             r = fly_task(task, progress=True, record=bool(args.video or args.out), controller=ctl)
         finally:
             fl.close()
@@ -220,6 +241,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
         "controller": "learned", "path": args.path, "path_length": path.length,
         "completed": completed, "status": r.status, "reason": r.reason,
         "progress": m["progress_m"], "model_hash": r.model_hash, "method": args.method, "mirror": args.mirror,
+        "clip_request": args.clip_request, "state_weight": args.state_weight,
         "predict": predict,
         "k": r.k, "database_samples": r.database_samples,
         "db": str(args.db) if args.db else "bundled", **m,

@@ -19,8 +19,9 @@ HELP = ("train the dove's controller database: sample wingbeats in parallel (loc
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--samples", type=int, required=True, metavar="N",
-                   help="accepted samples to collect (the first N by sample index)")
+    p.add_argument("--samples", type=int, default=None, metavar="N",
+                   help="accepted samples to collect (the first N by sample index; required "
+                        "unless --merge)")
     p.add_argument("--phase", type=int, choices=(1, 2), default=1,
                    help="1: perturbations of the reference wingbeat; 2: refine from --from DB")
     p.add_argument("--sigma", type=float, default=None,
@@ -51,6 +52,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: pre-state pitch within +-this (default 45, the paper's)")
     p.add_argument("--pre-roll-deg", type=float, default=None,
                    help="phase 1: pre-state roll within +-this (default 45, the paper's)")
+    p.add_argument("--pre-velocity", type=float, default=None, metavar="M_S",
+                   help="phase 1: pre-state linear velocity within +-this per body axis around cruise, "
+                        "m/s (default 0.3, the paper's)")
+    p.add_argument("--pre-angvel", type=float, default=None, metavar="DEG_S",
+                   help="phase 1: pre-state angular velocity within +-this per body axis, deg/s "
+                        "(default 4, the paper's)")
+    p.add_argument("--merge", nargs="+", default=None, metavar="DB",
+                   help="instead of training: write the samples of these finished databases (of "
+                        "the same dove and reference wingbeat) into one database --out, with "
+                        "every source's provenance")
     p.add_argument("--chunk-size", type=int, default=None, metavar="C",
                    help="samples per work unit (default 16, or the resumed file's)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
@@ -78,6 +89,11 @@ def _writable_file(path: str, flag: str) -> Path:
 
 def validate(args: argparse.Namespace) -> None:
     """Check every argument before any work (one-line InputError)."""
+    if getattr(args, "merge", None) is not None:
+        validate_merge(args)
+        return
+    if args.samples is None:
+        raise InputError("--samples N is required (unless --merge)")
     if not (1 <= args.samples <= 10**9):
         raise InputError(f"--samples must be 1..1e9, got {args.samples}")
     if args.workers is not None and not (1 <= args.workers <= 4096):
@@ -106,9 +122,15 @@ def validate(args: argparse.Namespace) -> None:
         raise InputError(f"--extrapolate must be a share 0..1, got {args.extrapolate}")
     for flag, v, hi in (("--alpha-max-deg", args.alpha_max_deg, 90), ("--beta-max-deg",
                         args.beta_max_deg, 60), ("--pre-pitch-deg", args.pre_pitch_deg, 80),
-                        ("--pre-roll-deg", args.pre_roll_deg, 80)):
+                        ("--pre-roll-deg", args.pre_roll_deg, 80),
+                        ("--pre-velocity", getattr(args, "pre_velocity", None), 10),
+                        ("--pre-angvel", getattr(args, "pre_angvel", None), 720)):
         if v is not None and not (math.isfinite(v) and 0 <= v <= hi):
             raise InputError(f"{flag} must be 0..{hi}, got {v}")
+    if args.phase == 2 and (getattr(args, "pre_velocity", None) is not None
+                            or getattr(args, "pre_angvel", None) is not None):
+        raise InputError("--pre-velocity and --pre-angvel are for phase 1; phase 2 keeps its --from "
+                         "database's pre-states")
     if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
         raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
     if args.phase == 2:
@@ -137,6 +159,10 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
         kwargs["pitch_deg"] = args.pre_pitch_deg
     if getattr(args, "pre_roll_deg", None) is not None:
         kwargs["roll_deg"] = args.pre_roll_deg
+    if getattr(args, "pre_velocity", None) is not None:
+        kwargs["linvel"] = args.pre_velocity
+    if getattr(args, "pre_angvel", None) is not None:
+        kwargs["angvel_deg_s"] = args.pre_angvel
     if getattr(args, "feathers", "rigid") != "rigid":
         kwargs["feathers"] = args.feathers
     return SamplingConfig(**kwargs), SampleWorker
@@ -207,8 +233,53 @@ def train_from_args(args: argparse.Namespace, config: Any, worker_cls: type, kin
     return {"phase": args.phase, **s}
 
 
+#: Training options that mean nothing to --merge (it refuses them rather than ignore them).
+_NOT_FOR_MERGE = (("samples", None, "--samples"), ("phase", 1, "--phase"), ("sigma", None, "--sigma"),
+                  ("from_db", None, "--from"), ("discovery", None, "--discovery"),
+                  ("pre_pitch_deg", None, "--pre-pitch-deg"), ("pre_roll_deg", None, "--pre-roll-deg"),
+                  ("pre_velocity", None, "--pre-velocity"), ("pre_angvel", None, "--pre-angvel"),
+                  ("chunk_size", None, "--chunk-size"), ("feathers", "rigid", "--feathers"),
+                  ("float32", False, "--float32"))
+
+
+def validate_merge(args: argparse.Namespace) -> None:
+    for name, default, flag in _NOT_FOR_MERGE:
+        if getattr(args, name, default) != default:
+            raise InputError(f"{flag} is for training; --merge only joins finished databases")
+    if len(args.merge) < 2:
+        raise InputError(f"--merge needs at least two databases, got {len(args.merge)}")
+    out = _writable_file(args.out, "--out")
+    for src in args.merge:
+        p = Path(src)
+        if p.resolve() == out.resolve():
+            raise InputError(f"--merge {src} and --out name the same file; choose another --out")
+        if not p.is_file():
+            raise InputError(f"--merge {src} does not exist or is not a file")
+    if len({Path(s).resolve() for s in args.merge}) != len(args.merge):
+        raise InputError("--merge names the same database twice")
+    if args.json:
+        js = _writable_file(args.json, "--json")
+        if js.resolve() == out.resolve():
+            raise InputError("--json and --out name the same file")
+
+
+def run_merge(args: argparse.Namespace) -> dict:
+    from flapsim.bird.database import merge_databases
+
+    db = merge_databases(args.merge, args.out)
+    parts = db.header["provenance"]["parts"]
+    print(f"{args.out}: {db.n} samples from {len(parts)} databases ("
+          + ", ".join(f"{Path(p['path']).name}: {p['samples']}" for p in parts)
+          + f"), model {db.header['model_hash']}")
+    return {"merged": [str(s) for s in args.merge], "out": str(args.out), "samples": db.n,
+            "parts": [{"path": p["path"], "samples": p["samples"], "sha256": p["sha256"]} for p in parts],
+            "model_hash": db.header["model_hash"]}
+
+
 def run(args: argparse.Namespace) -> dict:
     validate(args)
+    if getattr(args, "merge", None) is not None:
+        return run_merge(args)
     if args.phase == 1:
         config, worker_cls = phase1(args)
     else:

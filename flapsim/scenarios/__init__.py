@@ -61,6 +61,13 @@ class EvalOptions:
     k: int | None = None
     mirror: bool = True
     """Flight: the regression also searches the samples' mirror images."""
+    clip_request: float = 0.02
+    """Flight: the regression clips each requested dS component to these quantiles of the
+    database's (0: no clip; the default is
+    :data:`flapsim.bird.controller.DEFAULT_CLIP_REQUEST`)."""
+    state_weight: float = 0.0
+    """Flight: weight of the wingbeat's start state in the regression's neighbour search (0: dS
+    only, the paper's)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

@@ -44,11 +44,26 @@ def _summary(r) -> dict:
 
 
 def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
-    from flapsim.bird.tasks import fly_task
-
-    r = fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=bool(opt.video_dir))
+    r = _fly_task(task, opt, record=bool(opt.video_dir))
     files = _outputs(sc, opt, task, r, tag)
     return r, files
+
+
+def _fly_task(task, opt: EvalOptions, record: bool):
+    """:func:`~flapsim.bird.tasks.fly_task` with the options' controller (the regression
+    options that :func:`~flapsim.bird.tasks.build_flight` does not take are set after)."""
+    from flapsim.bird.controller import DEFAULT_CLIP_REQUEST, set_regression
+    from flapsim.bird.tasks import build_flight, fly_task
+
+    if opt.clip_request == DEFAULT_CLIP_REQUEST and not opt.state_weight:
+        return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record)
+    fl, ctl = build_flight(task, opt.db, opt.method, opt.k, opt.mirror)
+    try:
+        set_regression(ctl, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror,
+                       clip_request=opt.clip_request, state_weight=opt.state_weight)
+        return fly_task(task, record=record, controller=ctl)
+    finally:
+        fl.close()
 
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:
@@ -128,7 +143,7 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
     never farther than :data:`PUSH_TUBE_M` from the 60 m path, and back within
     :data:`PUSH_BACK_M` of it at its end."""
     from flapsim.bird import paths
-    from flapsim.bird.tasks import PushSpec, Task, fly_task
+    from flapsim.bird.tasks import PushSpec, Task
 
     direction = sc.params["direction"]
     forces = (8.0,) if opt.quick else PUSH_FORCES_N
@@ -137,7 +152,7 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
         task = Task(paths.straight(40.0 if opt.quick else 60.0),
                     pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M,
                     feathers=opt.feathers)
-        r = fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=bool(opt.video_dir))
+        r = _fly_task(task, opt, record=bool(opt.video_dir))
         files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
         sim += r.metrics["simulated_s"]
         back = task.path.distance(r.positions[-1])
@@ -164,7 +179,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     moved randomly within 1 m), each flown by its own controller; collisions between birds
     are trunks closer than one span (0.51 m) at the same instant."""
     from flapsim.bird import paths
-    from flapsim.bird.tasks import Task, fly_task
+    from flapsim.bird.tasks import Task
 
     p = sc.params
     rng = np.random.default_rng([opt.seed, 7])
@@ -178,7 +193,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
         path = leader if i == 0 else paths.perturbed_copy(leader, off, p["jitter_m"], rng,
                                                           horizontal=True)
         task = Task(path, feathers=opt.feathers)
-        r = fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=True)
+        r = _fly_task(task, opt, record=True)
         results.append(r)
         tracks.append(_track(r))
         if not opt.video_dir:

@@ -1,0 +1,146 @@
+"""Two databases used together: ``merge_databases`` / ``flapsim train --merge`` (every sample
+once, both provenances, refusals as one-line errors, atomic write), and the phase-1
+pre-state ranges ``--pre-velocity`` / ``--pre-angvel`` reaching the sampler and its
+provenance."""
+
+import json
+
+import numpy as np
+import pytest
+
+from flapsim.bird.database import load_database, merge_databases, save_database
+from flapsim.cli import main
+from flapsim.errors import DataFileError, InputError
+
+P0 = [0.1, 0.2, 0.3]
+
+
+def _db(path, n, seed, model="m1", p0=P0, fields=("S", "dS", "dP"), dtype=float):
+    rng = np.random.default_rng(seed)
+    arrays = {name: rng.standard_normal((n, 8 if name != "dP" else 3)).astype(dtype) for name in fields}
+    header = {"kind": "dove-phase1", "model_hash": model, "seed": seed, "config": {"seed": seed},
+              "provenance": {"P0": list(p0), "reference_coef": [1.0, 2.0], "reference_period": 0.1,
+                             "timestep": 1 / 2400, "model_hash": model}}
+    # sample indices with gaps, as a trained database has (rejected samples)
+    save_database(path, header, np.arange(n) * 3 + seed, arrays, {"left_range": seed + 1})
+    return arrays
+
+
+def test_merge_keeps_every_sample_and_both_provenances(tmp_path):
+    a = _db(tmp_path / "a.db", 7, 1)
+    b = _db(tmp_path / "b.db", 5, 2, dtype=np.float32)
+    db = merge_databases([tmp_path / "a.db", tmp_path / "b.db"], tmp_path / "m.db")
+    assert db.finalized and db.n == 12
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.db", "b.db", "m.db"]  # no temporaries
+    again = load_database(tmp_path / "m.db", model_hash="m1", require_finalized=True)
+    for name in ("S", "dS", "dP"):
+        np.testing.assert_array_equal(again.arrays[name][:7], a[name])
+        np.testing.assert_array_equal(again.arrays[name][7:], b[name].astype(float))
+    np.testing.assert_array_equal(again.arrays["part"], [0] * 7 + [1] * 5)
+    np.testing.assert_array_equal(again.arrays["source_index"], [1, 4, 7, 10, 13, 16, 19, 2, 5, 8, 11, 14])
+    prov = again.header["provenance"]
+    assert prov["P0"] == P0 and again.header["model_hash"] == "m1" and again.header["kind"] == "merged"
+    assert [p["samples"] for p in prov["parts"]] == [7, 5]
+    assert [p["header"]["seed"] for p in prov["parts"]] == [1, 2]
+    assert all(len(p["sha256"]) == 64 for p in prov["parts"])
+    assert again.rejected == {"left_range": 2 + 3}
+    # a merged database merges again (its own part/source_index fields are not carried)
+    third = merge_databases([tmp_path / "m.db", tmp_path / "a.db"], tmp_path / "m2.db")
+    assert third.n == 19 and sorted(third.arrays) == ["S", "dP", "dS", "part", "source_index"]
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    ({"model": "m2"}, "different doves"),
+    ({"p0": [0.1, 0.2, 0.4]}, "differs in 'P0'"),
+    ({"fields": ("dS", "dP")}, "fields"),
+])
+def test_merge_refuses_unlike_databases(tmp_path, kw, fragment):
+    _db(tmp_path / "a.db", 4, 1)
+    _db(tmp_path / "b.db", 4, 2, **kw)
+    with pytest.raises(InputError) as e:
+        merge_databases([tmp_path / "a.db", tmp_path / "b.db"], tmp_path / "m.db")
+    assert fragment in str(e.value) and "\n" not in str(e.value)
+    assert not (tmp_path / "m.db").exists()
+
+
+def test_merge_refuses_damaged_and_unfinished_files(tmp_path):
+    _db(tmp_path / "a.db", 4, 1)
+    (tmp_path / "bad.db").write_bytes(b"not a database")
+    with pytest.raises(DataFileError) as e:
+        merge_databases([tmp_path / "a.db", tmp_path / "bad.db"], tmp_path / "m.db")
+    assert "\n" not in str(e.value)
+    assert not (tmp_path / "m.db").exists()
+
+
+def _cli(capsys, *args):
+    code = main(["train", *args])
+    return code, capsys.readouterr()
+
+
+def test_cli_merge_writes_one_database_and_json(capsys, tmp_path):
+    _db(tmp_path / "a.db", 3, 1)
+    _db(tmp_path / "b.db", 2, 2)
+    code, out = _cli(capsys, "--merge", str(tmp_path / "a.db"), str(tmp_path / "b.db"), "--out",
+                     str(tmp_path / "m.db"), "--json", str(tmp_path / "m.json"))
+    assert code == 0, out.err
+    assert "5 samples from 2 databases" in out.out
+    s = json.loads((tmp_path / "m.json").read_text())
+    assert s["samples"] == 5 and [p["samples"] for p in s["parts"]] == [3, 2]
+    assert load_database(tmp_path / "m.db").n == 5
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--merge", "{tmp}/a.db"], "at least two"),
+    (["--merge", "{tmp}/a.db", "{tmp}/a.db"], "the same database twice"),
+    (["--merge", "{tmp}/a.db", "{tmp}/missing.db"], "does not exist"),
+    (["--merge", "{tmp}/a.db", "{tmp}/m.db"], "name the same file"),
+    (["--merge", "{tmp}/a.db", "{tmp}/b.db", "--samples", "10"], "--samples is for training"),
+    (["--merge", "{tmp}/a.db", "{tmp}/b.db", "--pre-velocity", "2"], "--pre-velocity is for training"),
+    (["--samples", "10", "--pre-velocity", "-1"], "--pre-velocity must be 0..10"),
+    (["--samples", "10", "--pre-velocity", "nan"], "--pre-velocity must be 0..10"),
+    (["--samples", "10", "--pre-angvel", "1000"], "--pre-angvel must be 0..720"),
+    (["--pre-angvel", "10"], "--samples N is required"),
+])
+def test_cli_merge_and_pre_state_bad_arguments(capsys, tmp_path, args, fragment):
+    _db(tmp_path / "a.db", 3, 1)
+    _db(tmp_path / "b.db", 2, 2)
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    code, out = _cli(capsys, *args, "--out", str(tmp_path / "m.db"))
+    err = out.err.strip()
+    assert code == 2 and fragment in err and "\n" not in err, err
+    assert not (tmp_path / "m.db").exists()
+
+
+def test_pre_state_ranges_reach_the_sampler_and_its_provenance():
+    """--pre-velocity / --pre-angvel set the sampler's ranges (stored with the database's
+    configuration), and the pre-states drawn fill them: body velocity within +-V of cruise
+    per axis, angular velocity within +-W deg/s per axis."""
+    import argparse
+
+    from flapsim.bird.sampling import SampleWorker
+    from flapsim.commands.train import phase1
+
+    args = argparse.Namespace(seed=3, sigma=None, pre_pitch_deg=30.0, pre_roll_deg=30.0, pre_velocity=4.0,
+                              pre_angvel=60.0, feathers="rigid")
+    cfg, worker_cls = phase1(args)
+    assert worker_cls is SampleWorker
+    d = cfg.to_dict()
+    assert (d["linvel"], d["angvel_deg_s"], d["pitch_deg"], d["roll_deg"]) == (4.0, 60.0, 30.0, 30.0)
+    w = SampleWorker(cfg)
+    try:
+        import mujoco
+
+        v, om = [], []
+        for i in range(60):
+            w.pre_state(np.random.default_rng([3, i]))
+            R = np.zeros(9)
+            mujoco.mju_quat2Mat(R, w.flight.data.qpos[3:7])
+            v.append(R.reshape(3, 3).T @ w.flight.data.qvel[0:3] - [cfg.cruise_speed, 0.0, 0.0])
+            om.append(np.degrees(w.flight.data.qvel[3:6]))
+    finally:
+        w.close()
+    v, om = np.abs(v), np.abs(om)
+    # uniform within +-4 m/s and +-60 deg/s: 60 draws reach beyond 3 and 45 on every axis
+    # (probability of missing it on one axis 0.75^60 ~ 3e-8)
+    assert v.max() <= 4.0 + 1e-9 and np.all(v.max(axis=0) > 3.0)
+    assert om.max() <= 60.0 + 1e-9 and np.all(om.max(axis=0) > 45.0)
