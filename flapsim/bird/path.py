@@ -93,6 +93,16 @@ class FlightPath:
         d = self._spline(self._param(s), 1)
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
+    def ahead(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(point, unit tangent) at arc length ``s``, continuing straight along the last
+        tangent beyond the path's end (a look-ahead target there would otherwise stop at the
+        end point, and the recovery curve would squeeze a second's flight into the last few
+        metres, bending the bird off the line just before it arrives)."""
+        if s <= self.length:
+            return self.point(s), self.tangent(s)
+        t = self.tangent(self.length)
+        return self.point(self.length) + (s - self.length) * t, t
+
     def closest(self, p: np.ndarray, lo: float = 0.0, hi: float | None = None) -> float:
         """Arc length of the path point nearest ``p`` among arc lengths [lo, hi]."""
         hi = self.length if hi is None else hi
@@ -226,8 +236,8 @@ class PathTarget:
         # progress never goes back, and looks at most a few seconds ahead (self-crossing paths)
         self.s = self.path.closest(p, self.s - 1.0, self.s + 3.0 * max(speed_now, self.speed))
         s_t = self.s + self.lookahead_s * max(speed_now, 1.0)
-        p_t = self.path.point(s_t)
-        t_t = self.path.tangent(s_t) * max(speed_now, 1.0)
+        p_t, t_t = self.path.ahead(s_t)
+        t_t = t_t * max(speed_now, 1.0)
         T = self.lookahead_s
         pd, vd, ad = hermite(p, v, p_t, t_t, T, min(dt, T))
         self._curve = (p, v, p_t, t_t, T)

@@ -210,6 +210,28 @@ def test_the_desired_position_is_the_curve_at_the_wingbeats_actual_end():
         tgt.end(0.1)  # once per wingbeat
 
 
+def test_near_the_paths_end_the_look_ahead_continues_straight_on():
+    # 2 m before the end of a 20 m straight path, flying along it at 7 m/s: the look-ahead
+    # point (7 m on) lies beyond the end, on the line's continuation, so the recovery curve is
+    # still the line and the desired position after 0.1 s is p + 0.7 m (clamped to the end
+    # point, the curve would have to cover 2 m in the second it is given: 0.36 m in 0.1 s)
+    from flapsim.bird.controller import Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget
+
+    path = FlightPath(np.array([[0, 0, 10.0], [20.0, 0, 10.0]]))
+    p, t = path.ahead(25.0)
+    np.testing.assert_allclose(p, [25.0, 0, 10.0], atol=1e-9)
+    np.testing.assert_allclose(t, [1.0, 0, 0], atol=1e-9)
+    tgt = PathTarget(Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0])), path, speed=7.0,
+                     ki_speed=0.0, ki_altitude=0.0)
+    p, v = np.array([18.0, 0, 10.0]), np.array([7.0, 0, 0])
+    tgt.begin(p, v)
+    tgt(CycleEnd(None, np.zeros(8), p + v * 0.1, np.array([1.0, 0, 0, 0]), v, 0.1, 0.0))
+    # tolerance: the 5 cm closest-point samples, weighted < 0.03 by the Hermite basis at 0.1 s
+    np.testing.assert_allclose(tgt.desired[-1][0], p + v * 0.1, atol=2e-3)
+
+
 def test_in_a_crosswind_the_bird_crabs_so_that_its_ground_track_is_the_path():
     # a 2 m/s wind from the right (+y) across a path along +x, airspeed 7 m/s: the air
     # velocity that makes good +x is (sqrt(49 - 4), -2, 0), a heading of -asin(2/7) = -16.6 deg
