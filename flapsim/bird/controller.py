@@ -866,14 +866,6 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     return ctl
 
 
-def set_regression(ctl: WingbeatController, db_path=None, **options) -> WingbeatController:
-    """Rebuild ``ctl``'s regression over ``db_path`` with :func:`load_controller`'s regression
-    options (``method``, ``k``, ``weights``, ``mirror``, ``state_weight``, ``clip_request``): for a
-    controller built elsewhere (:func:`flapsim.bird.tasks.build_flight`)."""
-    ctl.regressor = load_controller(ctl.flight, db_path, **options).regressor
-    return ctl
-
-
 def _predictor(db, path, every: int) -> S0Predictor:
     for name in ("S", "S0"):
         if name not in db.arrays:

@@ -154,9 +154,12 @@ class TaskResult:
         return self.status == "completed"
 
 
-def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None, mirror: bool = True):
+def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None, mirror: bool = True,
+                 **options):
     """The :class:`~flapsim.bird.flight.DoveFlight` and learned controller for ``task``
-    (``mirror``: the regression also searches the samples' mirror images, the default)."""
+    (``mirror``: the regression also searches the samples' mirror images, the default;
+    ``options``: :func:`~flapsim.bird.controller.load_controller`'s others, such as
+    ``clip_request``, ``state_weight`` or ``predict``)."""
     from flapsim.bird.controller import load_controller
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
@@ -164,7 +167,7 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
     fl = DoveFlight(Dove.load(feathers=task.feathers), wind=tuple(task.wind), flow=tuple(task.flow),
                     plucked=tuple(task.plucked))
     try:
-        ctl = load_controller(fl, db, method=method, k=k, mirror=mirror)
+        ctl = load_controller(fl, db, method=method, k=k, mirror=mirror, **options)
     except BaseException:
         fl.close()
         raise
@@ -173,7 +176,7 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
 
 def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
              record: bool = False, progress: bool = False, controller=None,
-             mirror: bool = True) -> TaskResult:
+             mirror: bool = True, **options) -> TaskResult:
     """Fly ``task`` with the learned controller over database ``db`` (default: bundled);
     ``controller``: an already built one (its flight's disturbances must match the task)."""
     from flapsim.bird.controller import trim_of_base_flight
@@ -181,7 +184,7 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
 
     own = controller is None
     if own:
-        fl, ctl = build_flight(task, db, method, k, mirror)
+        fl, ctl = build_flight(task, db, method, k, mirror, **options)
     else:
         ctl = controller
         fl = ctl.flight

@@ -211,30 +211,14 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
 
 def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     """Follow ``--path`` under the learned controller; the paper's Ep, Er, Eo, Ef."""
-    from flapsim.bird.tasks import Task, build_flight, fly_task
+    from flapsim.bird.tasks import Task, fly_task
 
     path = args.flight_path
     task = Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats)
     predict = getattr(args, "predict", "simulate")
-    from flapsim.bird.controller import DEFAULT_CLIP_REQUEST
-
-    custom = args.clip_request != DEFAULT_CLIP_REQUEST or bool(args.state_weight)
-    if predict == "simulate" and not custom:
-        r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
-                     record=bool(args.video or args.out))
-    else:
-        from flapsim.bird.controller import attach_predictor, set_regression
-
-        fl, ctl = build_flight(task, args.db, args.method, args.k, args.mirror)
-        try:
-            if custom:
-                set_regression(ctl, args.db, method=args.method, k=args.k, mirror=args.mirror,
-                               clip_request=args.clip_request, state_weight=args.state_weight)
-            if predict != "simulate":
-                attach_predictor(ctl, args.db)
-            r = fly_task(task, progress=True, record=bool(args.video or args.out), controller=ctl)
-        finally:
-            fl.close()
+    r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
+                 record=bool(args.video or args.out), clip_request=args.clip_request,
+                 state_weight=args.state_weight, predict=predict)
     m = r.metrics
     completed = r.status == "completed"
     result = {

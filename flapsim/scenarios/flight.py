@@ -50,20 +50,11 @@ def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
 
 
 def _fly_task(task, opt: EvalOptions, record: bool):
-    """:func:`~flapsim.bird.tasks.fly_task` with the options' controller (the regression
-    options that :func:`~flapsim.bird.tasks.build_flight` does not take are set after)."""
-    from flapsim.bird.controller import DEFAULT_CLIP_REQUEST, set_regression
-    from flapsim.bird.tasks import build_flight, fly_task
+    """:func:`~flapsim.bird.tasks.fly_task` with the options' controller."""
+    from flapsim.bird.tasks import fly_task
 
-    if opt.clip_request == DEFAULT_CLIP_REQUEST and not opt.state_weight:
-        return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record)
-    fl, ctl = build_flight(task, opt.db, opt.method, opt.k, opt.mirror)
-    try:
-        set_regression(ctl, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror,
-                       clip_request=opt.clip_request, state_weight=opt.state_weight)
-        return fly_task(task, record=record, controller=ctl)
-    finally:
-        fl.close()
+    return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
+                    clip_request=opt.clip_request, state_weight=opt.state_weight)
 
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:

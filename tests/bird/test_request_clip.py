@@ -79,9 +79,13 @@ def test_eval_and_fly_options_reach_the_controller(monkeypatch):
     from flapsim.scenarios.flight import _fly_task
 
     seen = {}
+    real_build_flight = tasks.build_flight
 
-    def fake_fly_task(task, db=None, record=False, controller=None, **kw):
-        seen["ctl"] = controller
+    def fake_fly_task(task, db=None, method="lwlr", k=None, record=False, controller=None,
+                      mirror=True, **options):
+        # the controller fly_task would fly: built from what the scenario passed on
+        fl, seen["ctl"] = real_build_flight(task, db, method, k, mirror, **options)
+        fl.close()
         return "flown"
 
     monkeypatch.setattr(tasks, "fly_task", fake_fly_task)
