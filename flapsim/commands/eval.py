@@ -8,6 +8,7 @@ import argparse
 import os
 from pathlib import Path
 
+from flapsim.commands.fly import add_regression_arguments
 from flapsim.errors import InputError
 from flapsim.validate import add_input_arg
 
@@ -45,17 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
                    help="regression of the wingbeat controller (default lwlr; knn: the paper's)")
     p.add_argument("--k", type=int, default=None, help="neighbours (default 0.5%% of the database)")
-    p.add_argument("--no-mirror", dest="mirror", action="store_false",
-                   help="the regression searches the database's samples only, not also their mirror "
-                        "images (the default searches both: the dove is symmetric)")
-    p.add_argument("--clip-request", type=float, default=0.02, metavar="Q",
-                   help="the regression clips each component of a requested state change to the "
-                        "[Q, 1-Q] quantiles of the database's (default 0.02; 0: no clip, the paper's): "
-                        "a request far outside the samples is otherwise extrapolated (see the README)")
-    p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
-                   help="the regression chooses neighbours by dS and, with weight W, by the "
-                        "wingbeat's start state (default 0: dS only, the paper's; for databases "
-                        "that mix cruise and disturbed pre-states, see the README)")
+    add_regression_arguments(p)
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",

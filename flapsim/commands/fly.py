@@ -14,6 +14,21 @@ HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat c
         "altitude, speed and heading) and report speed, deviations, lift/weight")
 
 
+def add_regression_arguments(p: argparse.ArgumentParser) -> None:
+    """The learned controller's regression options beyond --method/--k (``fly``, ``eval``)."""
+    p.add_argument("--no-mirror", dest="mirror", action="store_false",
+                   help="the regression searches the database's samples only, not also their mirror "
+                        "images (the default searches both: the dove is symmetric)")
+    p.add_argument("--clip-request", type=float, default=0.02, metavar="Q",
+                   help="the regression clips each component of a requested state change to the "
+                        "[Q, 1-Q] quantiles of the database's (default 0.02; 0: no clip, the paper's): "
+                        "a request far outside the samples is otherwise extrapolated (see the README)")
+    p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
+                   help="the regression chooses neighbours by dS and, with weight W, by the "
+                        "wingbeat's start state (default 0: dS only, the paper's; for databases "
+                        "that mix cruise and disturbed pre-states, see the README)")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wingbeats", type=int, default=None,
                    help="wingbeats to fly (default 10; with --path: at most, default enough for "
@@ -32,17 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "this dove level: see the README)")
     p.add_argument("--k", type=int, default=None,
                    help="neighbours of the regression (default 0.5%% of the database)")
-    p.add_argument("--no-mirror", dest="mirror", action="store_false",
-                   help="the regression searches the database's samples only, not also their mirror "
-                        "images (the default searches both: the dove is symmetric)")
-    p.add_argument("--clip-request", type=float, default=0.02, metavar="Q",
-                   help="the regression clips each component of a requested state change to the "
-                        "[Q, 1-Q] quantiles of the database's (default 0.02; 0: no clip, the paper's): "
-                        "a request far outside the samples is otherwise extrapolated (see the README)")
-    p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
-                   help="the regression chooses neighbours by dS and, with weight W, by the "
-                        "wingbeat's start state (default 0: dS only, the paper's; for databases "
-                        "that mix cruise and disturbed pre-states, see the README)")
+    add_regression_arguments(p)
     p.add_argument("--predict", choices=("simulate", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper) or predict it from "
