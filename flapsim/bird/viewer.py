@@ -93,10 +93,12 @@ class Command:
 
 
 def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = None,
-                path=None, launch=None, feathers: str = "rigid") -> dict:
+                path=None, launch=None, feathers: str = "rigid", **options) -> dict:
     """Fly the dove under the keys for ``seconds`` of simulated time (or until the window
     closes); returns what happened (keys, headings, distance). ``feathers``: ``rigid`` or
-    ``modal`` (then ``db`` must be a database of the modal dove)."""
+    ``modal`` (then ``db`` must be a database of the modal dove); ``options``: the
+    regression's (:func:`~flapsim.bird.controller.load_controller`: ``mirror``,
+    ``clip_request``, ...)."""
     from flapsim.bird.controller import CruiseTarget, start_cruise, trim_of_base_flight
     from flapsim.bird.flight import FlightConfig
     from flapsim.bird.path import PathTarget, start_on_path
@@ -105,7 +107,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
     # a gust primitive that is inert (zero amplitude) until Delete re-packs it in place
     fl, ctl = build_flight(Task(path if path is not None else _dummy_path(),
                                 flow=(Gust((0.0, 1.0, 0.0), 0.0, 0.0, GUST_S),), feathers=feathers),
-                           db, method, k)
+                           db, method, k, **options)
     view = None
     try:
         cmd = Command()

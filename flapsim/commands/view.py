@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from flapsim.commands.fly import add_regression_arguments
 from flapsim.errors import InputError
 from flapsim.validate import add_input_arg
 
@@ -22,6 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
                    help="regression of the wingbeat controller (default lwlr)")
     p.add_argument("--k", type=int, default=None, help="neighbours (default 0.5%% of the database)")
+    add_regression_arguments(p)
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="rigid feather plates (default) or modal feathers, drawn bent (needs --db: a "
                         "database trained with flapsim train --feathers modal)")
@@ -34,6 +36,9 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--seconds must be within 0..86400, got {args.seconds}")
     if args.k is not None and args.k < 1:
         raise InputError(f"--k must be >= 1, got {args.k}")
+    from flapsim.commands.eval import check_regression_options
+
+    check_regression_options(args)
     if args.feathers != "rigid" and not args.db:
         raise InputError("--feathers modal needs --db: a database trained with modal feathers "
                          "(flapsim train --feathers modal ...); the bundled one is the rigid dove's")
@@ -45,10 +50,12 @@ def run(args: argparse.Namespace) -> dict:
     check_display()
     from flapsim.bird.viewer import view_flight
 
-    r = view_flight(args.seconds, args.db, args.method, args.k, path, feathers=args.feathers)
+    r = view_flight(args.seconds, args.db, args.method, args.k, path, feathers=args.feathers,
+                    mirror=args.mirror, clip_request=args.clip_request, state_weight=args.state_weight)
     print(f"dove viewer: {r['simulated_s']:.1f} s flown in {r['wall_s']:.1f} s ({r['status']}); "
           f"turned {r['heading_change_deg']:+.0f} deg, climbed {r['altitude_change_m']:+.1f} m, "
           f"{r['distance_m']:.0f} m flown; {len(r['events'])} key commands, {r['pushes']} pushes, "
           f"{r['gusts']} gusts")
     return {"viewer": r, "path": args.path, "db": args.db or "bundled", "method": args.method,
+            "mirror": args.mirror, "clip_request": args.clip_request, "state_weight": args.state_weight,
             "feathers": args.feathers}
