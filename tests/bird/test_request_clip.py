@@ -150,3 +150,17 @@ def test_cli_defaults_are_the_library_default():
         mod.add_arguments(p)
         assert p.get_default("clip_request") == DEFAULT_CLIP_REQUEST and p.get_default("state_weight") == 0
     assert EvalOptions().clip_request == DEFAULT_CLIP_REQUEST and EvalOptions().state_weight == 0
+
+
+def test_the_conditioned_fit_is_affine_in_the_start_state_too():
+    # dP linear in dS AND in the start state S: the conditioned LWLR is affine in both, so it
+    # reproduces the map exactly (round-off and the 1e-9 ridge only). A fit affine in dS
+    # alone would absorb the S term's variation across the neighbourhood into its dS slopes
+    # and intercept (measured: off by 0.9), far above the tolerance
+    rng = np.random.default_rng(11)
+    S = rng.uniform(-1.0, 1.0, (N, 8))
+    B = rng.standard_normal((8, 5))
+    dP = DS @ A + S @ B
+    cond = Regressor(DS, dP, k=100, method="lwlr", ridge=1e-9, context=S, context_weight=1.0)
+    for x, s in zip(rng.uniform(-0.5, 0.5, (4, 8)), rng.uniform(-0.5, 0.5, (4, 8)), strict=True):
+        np.testing.assert_allclose(cond.predict(x, s), x @ A + s @ B, atol=1e-5)
