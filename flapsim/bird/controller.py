@@ -44,6 +44,7 @@ from scipy.spatial import cKDTree
 
 from flapsim.bird import cycle
 from flapsim.bird.flight import DoveFlight, FlightConfig
+from flapsim.bird.model import MIRROR_PERM
 from flapsim.bird.sampling import pose_quat, project_to_ranges
 from flapsim.bird.wingbeat import N_PARAMS, ReferenceWingbeat, p0, with_tail_bias
 from flapsim.errors import InputError
@@ -75,8 +76,6 @@ def mirror_samples(dS: np.ndarray, dP: np.ndarray, P0: np.ndarray) -> tuple[np.n
         raise InputError(f"mirror_samples needs dS (n, 8) and dP (n, {N_PARAMS}), got {dS.shape} and "
                          f"{dP.shape}")
     s, t = slice(0, -1, 2), slice(1, -1, 2)
-    from flapsim.bird.model import MIRROR_PERM
-
     full = dP + P0
     mirrored = full.copy()
     mirrored[:, s] = full[:, s][:, MIRROR_PERM]
@@ -208,11 +207,9 @@ class Regressor:
         return idw_average(d2, self.dP[idx])
 
     def _lwlr(self, x: np.ndarray, s: np.ndarray | None = None) -> np.ndarray:
-        q = self._query_point(x, s)
-        m = len(q)
+        m = 8 if self.context is None else 16  # inputs of the affine fit: dS (and S)
         k = max(self.k, 4 * (m + 1))  # an affine fit in m inputs needs a neighbourhood of > m + 1
-        dist, idx = self.tree.query(q, k=min(k, self.n))
-        d2, idx = np.atleast_1d(dist) ** 2, np.atleast_1d(idx)
+        d2, idx = self.neighbours(x, min(k, self.n), s)
         h2 = max(float(d2.max()), 1e-12)
         wts = np.exp(-d2 / h2)  # Gaussian kernel with the neighbourhood's radius
         X = (self.dS[idx] - x) * self.sqrt_w

@@ -63,29 +63,22 @@ def test_tables_record_the_continuous_rules(tmp_path):
     cyc.load_table(st, p, layers="cycle")
 
 
-def test_continuous_layer_follows_the_breaststrokes_figure_of_eight_closer():
-    # measured on the scenario's 5 m loops (115 s): 0.245 m with basic + per-cycle, 0.212
-    # m with all layers (0.40 with the palm rule in the outsweep and the rules' desired
-    # direction forwards); the margin asked, 0.015 m, is under half the measured gap
+@pytest.mark.parametrize("stroke, seconds, margin", [
+    # the scenario's 5 m loops: breaststroke (115 s) 0.245 m with basic + per-cycle, 0.212 m
+    # with all layers (0.40 with the palm rule in the outsweep and the rules' desired
+    # direction forwards); crawl (62.8 m, 90 s) 0.18 m and 0.07 m (0.96 m without the speed
+    # demand from the aim's curvature); each margin asked is under half the measured gap
+    ("breaststroke", 115.0, 0.015),
+    ("crawl", 90.0, 0.04),
+])
+def test_continuous_layer_follows_the_figure_of_eight_closer(stroke, seconds, margin):
+    # the issue's ordering: mean distance from the path, all layers < basic + per-cycle
     def mean(layers):
-        r = swim("breaststroke", 115.0, target=figure_eight(5.0), layers=layers)
+        r = swim(stroke, seconds, target=figure_eight(5.0), layers=layers)
         m = _metrics(r)
         assert m["path_completed_fraction"] == 1.0
         return m["distance_to_target_mean_m"]
-    assert mean("all") < mean("cycle") - 0.015
-
-
-def test_continuous_layer_follows_the_crawls_figure_of_eight_closer():
-    # the issue's ordering on the scenario's 5 m loops (62.8 m, 90 s): measured mean
-    # distance from the path 0.18 m with basic + per-cycle, 0.07 m with all layers (0.96
-    # m without the speed demand from the aim's curvature); the margin asked, 0.04 m, is
-    # under half the measured gap
-    def mean(layers):
-        r = swim("crawl", 90.0, target=figure_eight(5.0), layers=layers)
-        m = _metrics(r)
-        assert m["path_completed_fraction"] == 1.0
-        return m["distance_to_target_mean_m"]
-    assert mean("all") < mean("cycle") - 0.04
+    assert mean("all") < mean("cycle") - margin
 
 
 def test_breaststroke_hand_rules_act_in_the_arm_pull_only():
