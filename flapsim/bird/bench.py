@@ -200,9 +200,9 @@ def run_train(args: argparse.Namespace) -> dict:
 
 def run_controller(args: argparse.Namespace) -> dict:
     """``flapsim bench controller``: the learned controller's cruise in real-time factor (S0
-    simulated every wingbeat, the default, and ``predict="regression"``), what a controlled
-    wingbeat costs against a base wingbeat (the P0 prediction, the regression and the flown
-    wingbeat), and each against a bare ``mujoco.rollout`` of P0 (the floor: no controller, no
+    simulated every wingbeat, the default, ``predict="coarse"`` and ``predict="regression"``),
+    what a controlled wingbeat costs against a base wingbeat (the P0 prediction, the regression
+    and the flown wingbeat), and each against a bare ``mujoco.rollout`` of P0 (the floor: no controller, no
     Python), all in the same run."""
     from mujoco import rollout
 
@@ -225,10 +225,12 @@ def run_controller(args: argparse.Namespace) -> dict:
     fl = DoveFlight(dove)
     try:
         ctl = load_controller(fl, db)
+        coarse = load_controller(fl, db, predict="coarse")
         reg = attach_predictor(load_controller(fl, db), db)
         trim = trim_of_base_flight(fl, ctl.P0)
         res = {}
-        for name, c in (("learned", ctl), ("learned_regression", reg), ("base", BaseController(fl, ctl.P0))):
+        for name, c in (("learned", ctl), ("learned_coarse", coarse), ("learned_regression", reg),
+                        ("base", BaseController(fl, ctl.P0))):
             start_cruise(fl, ctl.P0)
             f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
             res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
@@ -259,6 +261,7 @@ def run_controller(args: argparse.Namespace) -> dict:
         "method": ctl.regressor.method,
         "k": ctl.regressor.k,
         "real_time_factor": res["learned"]["real_time_factor"],
+        "real_time_factor_coarse": res["learned_coarse"]["real_time_factor"],
         "real_time_factor_regression": res["learned_regression"]["real_time_factor"],
         "cost_over_base": res["base"]["real_time_factor"] / res["learned"]["real_time_factor"],
         "over_bare_rollout": {k: v["real_time_factor"] / bare for k, v in res.items()},
@@ -269,9 +272,11 @@ def run_controller(args: argparse.Namespace) -> dict:
     print(f"learned controller ({out['method']}, k={out['k']}, {out['database_samples']} samples): "
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
-    print(f"  --predict regression: {out['real_time_factor_regression']:.1f}x real time")
+    print(f"  --predict coarse: {out['real_time_factor_coarse']:.1f}x real time; --predict regression: "
+          f"{out['real_time_factor_regression']:.1f}x")
     print(f"  against a bare rollout of the reference wingbeat ({bare:.1f}x real time): learned "
-          f"{r['learned']:.2f}, learned --predict regression {r['learned_regression']:.2f}, "
+          f"{r['learned']:.2f}, --predict coarse {r['learned_coarse']:.2f}, --predict regression "
+          f"{r['learned_regression']:.2f}, "
           f"base {r['base']:.2f}")
     return out
 

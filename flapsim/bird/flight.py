@@ -13,6 +13,7 @@ control_table`) and the cycle is stepped either in a Python loop or, by default,
 
 from __future__ import annotations
 
+import copy
 import logging
 from dataclasses import dataclass, field
 
@@ -192,11 +193,36 @@ class DoveFlight:
                 self._fan.append((m.jnt_qposadr[j], m.jnt_dofadr[j], wrist,
                                   fan_ratio(self.dove.params, k)))
         self._rollout_data = None
+        self._twins: list[DoveFlight] = []
 
     def close(self) -> None:
         self.registration.remove()
         if self._modal_registration is not None:
             self._modal_registration.remove()
+        for tw in self._twins:
+            tw.close()
+        self._twins.clear()
+
+    def twin(self, rate_hz: float) -> DoveFlight:
+        """This flight's dove stepped at ``rate_hz`` on its own ``MjData``: the same forces,
+        flows and plucked feathers (shared, not copied), so any snapshot of this flight
+        restores into it. The learned controller's ``predict="coarse"`` flies the reference
+        wingbeat there. Closed with this flight."""
+        rate_hz = float(rate_hz)
+        if not np.isfinite(rate_hz) or not 100.0 <= rate_hz <= 1.0e5:
+            raise InputError(f"a step rate must be 100-100000 Hz, got {rate_hz}")
+        if self.modal is not None:
+            # the unresolved modes' backward-Euler damping (k dt) is built for this timestep
+            raise InputError("a coarser-stepped copy needs rigid feathers (the modal feathers' "
+                             "damping is set for the flight's own timestep)")
+        tw = copy.copy(self)
+        tw.model = copy.copy(self.model)  # mj_copyModel: the option struct is its own
+        tw.model.opt.timestep = 1.0 / rate_hz
+        tw.data = mujoco.MjData(tw.model)
+        tw.registration = self.aero.register(tw.data, model=tw.model)
+        tw._modal_registration, tw._rollout_data, tw._twins = None, None, []
+        self._twins.append(tw)
+        return tw
 
     def aero_forces(self, d: mujoco.MjData | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every aerodynamic polygon's (force (n, 3), world point (n, 3), is-feather (n,)) for

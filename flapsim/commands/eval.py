@@ -25,7 +25,7 @@ TABLE1_SCENARIO = "figure8"
 
 
 def check_regression_options(args: argparse.Namespace) -> None:
-    """--clip-request and --state-weight (fly and eval): one-line errors."""
+    """--clip-request, --state-weight and --predict (fly, eval, view): one-line errors."""
     import math
 
     q, w = args.clip_request, args.state_weight
@@ -33,6 +33,9 @@ def check_regression_options(args: argparse.Namespace) -> None:
         raise InputError(f"--clip-request must be a share 0 <= Q < 0.5, got {q}")
     if not (math.isfinite(w) and 0.0 <= w <= 1e3):
         raise InputError(f"--state-weight must be 0..1000, got {w}")
+    if getattr(args, "predict", "simulate") == "coarse" and getattr(args, "feathers", "rigid") != "rigid":
+        raise InputError("--predict coarse needs rigid feathers (the modal feathers' damping is set "
+                         "for the flight's own timestep): use --predict simulate")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -123,7 +126,7 @@ def run(args: argparse.Namespace) -> dict:
     check_regression_options(args)
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
-                                 layers=args.layers,
+                                 predict=args.predict, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
     if args.feathers != "rigid" and not args.db:

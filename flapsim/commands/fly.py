@@ -15,7 +15,7 @@ HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat c
 
 
 def add_regression_arguments(p: argparse.ArgumentParser) -> None:
-    """The learned controller's regression options beyond --method/--k (``fly``, ``eval``)."""
+    """The learned controller's options beyond --method/--k (``fly``, ``eval``, ``view``)."""
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="the regression searches the database's samples only, not also their mirror "
                         "images (the default searches both: the dove is symmetric)")
@@ -27,6 +27,14 @@ def add_regression_arguments(p: argparse.ArgumentParser) -> None:
                    help="the regression chooses neighbours by dS and, with weight W, by the "
                         "wingbeat's start state (default 0: dS only, the paper's; for databases "
                         "that mix cruise and disturbed pre-states, see the README)")
+    p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
+                   help="how the learned controller finds S0, where the reference wingbeat would "
+                        "end: simulate it every wingbeat (default; the paper), simulate it at a "
+                        "coarser step (coarse: 1600 Hz against 2400, ~1.25x faster, the same "
+                        "verdicts on the figures of eight and in wind) or predict it from the "
+                        "database's (S, S0) pairs, simulating only some wingbeats to correct its "
+                        "bias (regression, EXPERIMENTAL: 1.4-1.6x faster; loses the rising figure "
+                        "of eight on 3 of 7 asked speeds)")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -48,12 +56,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--k", type=int, default=None,
                    help="neighbours of the regression (default 0.5%% of the database)")
     add_regression_arguments(p)
-    p.add_argument("--predict", choices=("simulate", "regression"), default="simulate",
-                   help="how the learned controller finds S0, where the reference wingbeat would "
-                        "end: simulate it every wingbeat (default; the paper) or predict it from "
-                        "the database's (S, S0) pairs, simulating only some wingbeats to "
-                        "correct its bias (EXPERIMENTAL: 1.4-1.6x faster; holds cruise and the "
-                        "level figure of eight but loses the rising one)")
     p.add_argument("--roll-deg", type=float, default=0.0,
                    help="initial roll error, deg (+ right wing down)")
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,

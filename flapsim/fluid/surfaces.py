@@ -514,11 +514,16 @@ class SurfaceForces(CompiledProvider):
             self._no_record if record is None else record,
         ]
 
-    def register(self, data: mujoco.MjData) -> Registration:
-        """Apply these forces whenever MuJoCo steps ``data`` (until the handle is removed)."""
+    def register(self, data: mujoco.MjData, model: mujoco.MjModel | None = None) -> Registration:
+        """Apply these forces whenever MuJoCo steps ``data`` (until the handle is removed);
+        ``model``: a copy of this one that ``data`` was made from (same bodies; another
+        timestep, say) instead of this one."""
+        model = self.model if model is None else model
+        if model.nbody != self.model.nbody or model.nv != self.model.nv:
+            raise InputError("register: the model is not a copy of the forces' own (bodies or DOF differ)")
         if self.flow.has_python:
-            return register(self.model, data, self._python_provider(data), self.name)
-        return register(self.model, data, self)
+            return register(model, data, self._python_provider(data), self.name)
+        return register(model, data, self)
 
     def _python_provider(self, data: mujoco.MjData):
         """Provider for flows with Python fields: evaluate them for all centroids, then run

@@ -68,6 +68,8 @@ class EvalOptions:
     state_weight: float = 0.0
     """Flight: weight of the wingbeat's start state in the regression's neighbour search (0: dS
     only, the paper's)."""
+    predict: str = "simulate"
+    """Flight: how the controller finds S0 (:func:`flapsim.bird.controller.load_controller`)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

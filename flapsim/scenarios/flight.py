@@ -54,7 +54,7 @@ def _fly_task(task, opt: EvalOptions, record: bool):
     from flapsim.bird.tasks import fly_task
 
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
-                    clip_request=opt.clip_request, state_weight=opt.state_weight)
+                    clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict)
 
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:

@@ -137,7 +137,7 @@ def test_a_state_set_from_outside_restarts_with_a_simulation(flight, controller,
 
 def test_default_is_simulate_and_bad_settings_are_one_line_errors(flight):
     assert load_controller(flight).predict == "simulate"
-    with pytest.raises(InputError, match="simulate, regression"):
+    with pytest.raises(InputError, match="simulate, coarse, regression"):
         load_controller(flight, predict="guess")
     db = load_database(bundled_database_path())
     with pytest.raises(InputError, match="N >= 1"):
