@@ -24,6 +24,21 @@ TABLE1_SCENARIO = "figure8"
 """The paper's Table I path: a figure of eight with ascending and descending turns."""
 
 
+def push_note(table: list[dict]) -> str:
+    """One line for a push scenario's forces: survived, completed but ended off the path
+    (how far), lost."""
+    ok = [f"{r['newtons']:g}" for r in table if r["survived"]]
+    off = [f"{r['newtons']:g} ({r['final_path_distance']:.1f} m)" for r in table
+           if not r["survived"] and r["status"] == "completed"]
+    lost = [f"{r['newtons']:g}" for r in table if not r["survived"] and r["status"] != "completed"]
+    parts = [f"survived {', '.join(ok)} N" if ok else "survived none"]
+    if off:
+        parts.append(f"ended off the path: {', '.join(off)}")
+    if lost:
+        parts.append(f"lost at {', '.join(lost)} N")
+    return "; ".join(parts)
+
+
 def check_regression_options(args: argparse.Namespace) -> None:
     """--clip-request, --state-weight and --predict (fly, eval, view): one-line errors."""
     import math
@@ -195,11 +210,7 @@ def print_table(results: list[dict]) -> None:
             m = r.get("metrics", {})
             note = r.get("reason", "")
             if "table" in m:
-                note = "survived " + ", ".join(f"{row['newtons']:g}" for row in m["table"]
-                                               if row["survived"]) + " N"
-                note += "; lost at " + ", ".join(f"{row['newtons']:g}" for row in m["table"]
-                                                 if not row["survived"]) + " N" \
-                    if any(not row["survived"] for row in m["table"]) else ""
+                note = push_note(m["table"])
             elif "steering_range_deg" in m and r["scenario"].startswith("sinusoid"):
                 lo, hi = m["steering_range_deg"]
                 note = (f"steering {lo:+.1f}..{hi:+.1f} deg/wingbeat"

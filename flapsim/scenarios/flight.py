@@ -156,8 +156,9 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
             worst = f
     survived_8 = all(row["survived"] for row in table if row["newtons"] <= 8.0)
     strongest = max([row["newtons"] for row in table if row["survived"]], default=0.0)
+    why = "" if worst is None else table[forces.index(worst)]["reason"]
     return {"status": "completed" if survived_8 else "lost", "ok": survived_8,
-            "reason": "" if survived_8 else f"lost at {worst:g} N",
+            "reason": "" if survived_8 else f"not survived at {worst:g} N ({why})",
             "metrics": {"direction": direction, "strongest_survived_N": strongest,
                         "first_lost_N": worst, "table": table, "simulated_s": sim},
             "files": files}
