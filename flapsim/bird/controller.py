@@ -48,6 +48,7 @@ from flapsim.bird.model import MIRROR_PERM
 from flapsim.bird.sampling import pose_quat, project_to_ranges
 from flapsim.bird.wingbeat import N_PARAMS, ReferenceWingbeat, p0, with_tail_bias
 from flapsim.errors import InputError
+from flapsim.fluid.coefficients import get_table
 
 log = logging.getLogger(__name__)
 
@@ -856,6 +857,16 @@ def bundled_database_path():
     return Path(__file__).resolve().parent / "data" / BUNDLED_DB
 
 
+def database_table(db_path=None) -> str:
+    """The feather coefficient table a controller database (default: the bundled one) was
+    sampled with: its sampling configuration's, or the default table where it names none (a
+    merged database, say). A learned controller flies with that table only."""
+    from flapsim.bird.database import read_header
+
+    cfg = read_header(db_path or bundled_database_path()).get("config") or {}
+    return str(cfg.get("table") or FlightConfig.table)
+
+
 def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
                     weights: tuple[float, float, float] = PAPER_WEIGHTS,
                     predict: str = "simulate", predict_every: int = 4,
@@ -886,6 +897,12 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     for name in ("dS", "dP"):
         if name not in db.arrays:
             raise InputError(f"{path} has no {name!r} field: not a wingbeat controller database")
+    sampled = (db.header.get("config") or {}).get("table")
+    flown = get_table(flight.table).name
+    if sampled and sampled != flown:
+        raise InputError(f"{path} was sampled with the {sampled} feather table but this flight uses "
+                         f"{flown}: fly it with --table {sampled} (its wingbeats are right only for "
+                         "the forces they were sampled with)")
     prov = db.header.get("provenance", {})
     P0 = np.asarray(prov.get("P0", with_tail_bias(p0(), FlightConfig.tail_bias_deg)), float)
     dS, dP = db.arrays["dS"], db.arrays["dP"]

@@ -156,16 +156,17 @@ class TaskResult:
 
 def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None, mirror: bool = True,
                  **options):
-    """The :class:`~flapsim.bird.flight.DoveFlight` and learned controller for ``task``
-    (``mirror``: the regression also searches the samples' mirror images, the default;
-    ``options``: :func:`~flapsim.bird.controller.load_controller`'s others, such as
-    ``clip_request``, ``state_weight`` or ``predict``)."""
-    from flapsim.bird.controller import load_controller
+    """The :class:`~flapsim.bird.flight.DoveFlight` (with the feather table the database was
+    sampled with) and learned controller for ``task`` (``mirror``: the regression also
+    searches the samples' mirror images, the default; ``options``:
+    :func:`~flapsim.bird.controller.load_controller`'s others, such as ``clip_request``,
+    ``state_weight`` or ``predict``)."""
+    from flapsim.bird.controller import database_table, load_controller
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
 
-    fl = DoveFlight(Dove.load(feathers=task.feathers), wind=tuple(task.wind), flow=tuple(task.flow),
-                    plucked=tuple(task.plucked))
+    fl = DoveFlight(Dove.load(feathers=task.feathers), table=database_table(db), wind=tuple(task.wind),
+                    flow=tuple(task.flow), plucked=tuple(task.plucked))
     try:
         ctl = load_controller(fl, db, method=method, k=k, mirror=mirror, **options)
     except BaseException:

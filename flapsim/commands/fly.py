@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 import numpy as np
 
@@ -66,7 +67,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tail-bias-deg", type=float, default=17.0,
                    help="tail bend added to the reference wingbeat (paper: 17)")
     p.add_argument("--table", default=None,
-                   help="feather coefficient table (default dickinson1999_lowdrag)")
+                   help="feather coefficient table (default dickinson1999_profile; a learned "
+                        "controller's default: the table its database was sampled with)")
     p.add_argument("--python-loop", action="store_true",
                    help="step in a Python loop instead of mujoco.rollout (same result)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
@@ -171,6 +173,10 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     from flapsim.bird.wingbeat import p0, with_tail_bias
 
     dove = Dove.load(feathers=args.feathers)
+    if args.controller == "learned" and not args.table:
+        from flapsim.bird.controller import database_table
+
+        cfg = dataclasses.replace(cfg, table=database_table(args.db))
     fl = DoveFlight(dove, table=cfg.table)
     try:
         if args.controller == "learned":

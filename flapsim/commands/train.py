@@ -67,6 +67,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="phase 1: the dove's feathers, rigid (default) or modal (bending; ~1.4x "
                         "slower); the database only serves a dove with the same feathers")
+    p.add_argument("--table", default=None, metavar="NAME",
+                   help="phase 1: the feather coefficient table the samples are flown with (default "
+                        "dickinson1999_profile; dove_revolving: fitted to revolving dove wings, see "
+                        "the README); the database's controller flies with it")
+    p.add_argument("--tail-bias-deg", type=float, default=None,
+                   help="phase 1: tail bend added to the reference wingbeat, deg (default 17, the "
+                        "paper's)")
     p.add_argument("--float32", action="store_true",
                    help="store the finished database's samples in single precision (half the "
                         "size: the bundled database is stored so)")
@@ -133,6 +140,9 @@ def validate(args: argparse.Namespace) -> None:
                          "database's pre-states")
     if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
         raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
+    if args.phase == 2 and (getattr(args, "table", None) or getattr(args, "tail_bias_deg", None) is not None):
+        raise InputError("--table and --tail-bias-deg are for phase 1; phase 2 keeps its --from "
+                         "database's")
     if args.phase == 2:
         if args.from_db is None:
             raise InputError("--phase 2 needs --from DB (a phase-1 database)")
@@ -165,6 +175,15 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
         kwargs["angvel_deg_s"] = args.pre_angvel
     if getattr(args, "feathers", "rigid") != "rigid":
         kwargs["feathers"] = args.feathers
+    if getattr(args, "table", None):
+        from flapsim.fluid.coefficients import get_table
+
+        kwargs["table"] = get_table(args.table).name  # an unknown name: one-line error here
+    if getattr(args, "tail_bias_deg", None) is not None:
+        if not (math.isfinite(args.tail_bias_deg) and abs(args.tail_bias_deg) <= 40.0):
+            raise InputError(f"--tail-bias-deg must be within -40..40 (the tail's range), got "
+                             f"{args.tail_bias_deg}")
+        kwargs["tail_bias_deg"] = float(args.tail_bias_deg)
     return SamplingConfig(**kwargs), SampleWorker
 
 
@@ -239,7 +258,8 @@ _NOT_FOR_MERGE = (("samples", None, "--samples"), ("phase", 1, "--phase"), ("sig
                   ("pre_pitch_deg", None, "--pre-pitch-deg"), ("pre_roll_deg", None, "--pre-roll-deg"),
                   ("pre_velocity", None, "--pre-velocity"), ("pre_angvel", None, "--pre-angvel"),
                   ("chunk_size", None, "--chunk-size"), ("feathers", "rigid", "--feathers"),
-                  ("float32", False, "--float32"))
+                  ("float32", False, "--float32"), ("table", None, "--table"),
+                  ("tail_bias_deg", None, "--tail-bias-deg"))
 
 
 def validate_merge(args: argparse.Namespace) -> None:

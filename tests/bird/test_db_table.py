@@ -1,0 +1,68 @@
+"""A controller database flies with the feather table it was sampled with."""
+
+import numpy as np
+import pytest
+
+from flapsim.bird import paths
+from flapsim.bird.controller import bundled_database_path, database_table, load_controller
+from flapsim.bird.database import load_database, save_database
+from flapsim.bird.flight import DoveFlight, FlightConfig
+from flapsim.bird.model import Dove
+from flapsim.bird.tasks import Task, build_flight
+from flapsim.errors import InputError
+
+
+@pytest.fixture(scope="module")
+def revolving_db(tmp_path_factory):
+    """The bundled samples relabelled as sampled with ``dove_revolving`` (the label is what
+    is under test, not the samples)."""
+    src = load_database(bundled_database_path())
+    head = {k: v for k, v in src.header.items() if k != "fields"}
+    head["config"] = {**head["config"], "table": "dove_revolving"}
+    path = tmp_path_factory.mktemp("db") / "revolving.db"
+    save_database(path, head, np.arange(300), {k: v[:300] for k, v in src.arrays.items()}, {})
+    return path
+
+
+def test_the_bundled_database_names_its_table():
+    assert database_table() == FlightConfig.table == "dickinson1999_profile"
+
+
+def test_a_flight_with_another_table_is_refused(revolving_db):
+    fl = DoveFlight(Dove.load(), table="dove_revolving")
+    try:
+        with pytest.raises(InputError, match="sampled with the dickinson1999_profile feather table") as e:
+            load_controller(fl)
+        assert "\n" not in str(e.value) and "--table dickinson1999_profile" in str(e.value)
+        assert load_controller(fl, revolving_db).regressor.n == 600  # 300 and their mirror images
+    finally:
+        fl.close()
+
+
+def test_tasks_fly_with_the_databases_table(revolving_db):
+    fl, ctl = build_flight(Task(paths.straight(20.0)), revolving_db)
+    try:
+        assert fl.table == "dove_revolving" and ctl.flight is fl
+    finally:
+        fl.close()
+    fl, _ = build_flight(Task(paths.straight(20.0)))
+    try:
+        assert fl.table == "dickinson1999_profile"
+    finally:
+        fl.close()
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--samples", "10", "--table", "nope"], "unknown coefficient table 'nope'"),
+    (["--samples", "10", "--tail-bias-deg", "45"], "--tail-bias-deg must be within -40..40"),
+    (["--samples", "10", "--phase", "2", "--from", "x.db", "--table", "dove_revolving"],
+     "--table and --tail-bias-deg are for phase 1"),
+    (["--merge", "a.db", "b.db", "--table", "dove_revolving"], "--table is for training"),
+])
+def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
+    from flapsim.cli import main
+
+    code = main(["train", *args, "--out", str(tmp_path / "out.db")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and fragment in err and "\n" not in err, err
+    assert not (tmp_path / "out.db").exists()
