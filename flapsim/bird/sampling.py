@@ -45,6 +45,7 @@ from flapsim.bird.wingbeat import (
     reference_wingbeat,
     split,
     with_tail_bias,
+    with_twist_bias,
 )
 from flapsim.errors import DataFileError, InputError, SimulationError
 
@@ -243,6 +244,9 @@ class SamplingConfig(StoredConfig):
     """Cruise speed the pre-state is drawn around, m/s (paper: ~7)."""
     tail_bias_deg: float = FlightConfig.tail_bias_deg
     """Tail bend added to every wingbeat, deg (paper: 17)."""
+    twist_bias_deg: float = 0.0
+    """Shoulder twist added to every wingbeat on both sides, deg (- supinates: more angle of
+    attack); 0 for the bundled database. The reference wingbeat is P0 with both biases."""
     table: str = FlightConfig.table
     """Feather coefficient table."""
     source: str = "capture"
@@ -263,6 +267,8 @@ class SamplingConfig(StoredConfig):
         d = asdict(self)
         if d["feathers"] == "rigid":
             del d["feathers"]  # rigid databases keep the configuration they always had
+        if d["twist_bias_deg"] == 0.0:
+            del d["twist_bias_deg"]  # likewise
         return d
 
     def validate(self) -> None:
@@ -278,6 +284,8 @@ class SamplingConfig(StoredConfig):
                 raise InputError(f"{name} must be a finite non-negative number, got {v}")
         if not (1.0 <= self.cruise_speed <= 20.0):
             raise InputError(f"cruise speed must be 1..20 m/s, got {self.cruise_speed}")
+        if not (np.isfinite(self.twist_bias_deg) and abs(self.twist_bias_deg) <= 30.0):
+            raise InputError(f"--twist-bias-deg must be within -30..30, got {self.twist_bias_deg}")
 
 
 def sample_fields(S: np.ndarray, dP: np.ndarray, e0: cycle.CycleEnd, e1: cycle.CycleEnd
@@ -349,7 +357,7 @@ class SampleWorker:
         self.dove = Dove.load(feathers=config.feathers)
         self.flight = DoveFlight(self.dove, self.ref, config.table)
         self.lo, self.hi = cycle.model_dof_ranges(self.flight)
-        self.P0 = with_tail_bias(p0(), config.tail_bias_deg)
+        self.P0 = with_twist_bias(with_tail_bias(p0(), config.tail_bias_deg), config.twist_bias_deg)
         self.manifold = None
         if config.extrapolate > 0:
             from flapsim.bird.discovery import Manifold

@@ -62,6 +62,15 @@ def mirror_params(p: np.ndarray) -> np.ndarray:
     return join(s[MIRROR_PERM], t[MIRROR_PERM], w)
 
 
+def with_twist_bias(p: np.ndarray, bias_deg: float) -> np.ndarray:
+    """``p`` with both shoulder twists translated by ``bias_deg`` (the same on both sides,
+    so the wingbeat stays symmetric; - supinates the wings: more angle of attack)."""
+    q = np.array(p, dtype=float)
+    for side in "lr":
+        q[2 * DOF_NAMES.index(f"{side}_shoulder_twist") + 1] += np.radians(bias_deg)
+    return q
+
+
 def with_tail_bias(p: np.ndarray, bias_deg: float) -> np.ndarray:
     """``p`` with the tail bend translated by ``bias_deg`` (the paper's +17 deg: tail up)."""
     q = np.array(p, dtype=float)

@@ -74,6 +74,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tail-bias-deg", type=float, default=None,
                    help="phase 1: tail bend added to the reference wingbeat, deg (default 17, the "
                         "paper's)")
+    p.add_argument("--twist-bias-deg", type=float, default=None,
+                   help="phase 1: shoulder twist added to the reference wingbeat on both sides, deg "
+                        "(default 0; - supinates: more lift, less thrust)")
     p.add_argument("--float32", action="store_true",
                    help="store the finished database's samples in single precision (half the "
                         "size: the bundled database is stored so)")
@@ -140,9 +143,10 @@ def validate(args: argparse.Namespace) -> None:
                          "database's pre-states")
     if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
         raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
-    if args.phase == 2 and (getattr(args, "table", None) or getattr(args, "tail_bias_deg", None) is not None):
-        raise InputError("--table and --tail-bias-deg are for phase 1; phase 2 keeps its --from "
-                         "database's")
+    if args.phase == 2 and (getattr(args, "table", None) or getattr(args, "tail_bias_deg", None) is not None
+                            or getattr(args, "twist_bias_deg", None) is not None):
+        raise InputError("--table, --tail-bias-deg and --twist-bias-deg are for phase 1; phase 2 keeps "
+                         "its --from database's")
     if args.phase == 2:
         if args.from_db is None:
             raise InputError("--phase 2 needs --from DB (a phase-1 database)")
@@ -179,6 +183,8 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
         from flapsim.fluid.coefficients import get_table
 
         kwargs["table"] = get_table(args.table).name  # an unknown name: one-line error here
+    if getattr(args, "twist_bias_deg", None) is not None:
+        kwargs["twist_bias_deg"] = float(args.twist_bias_deg)  # checked by the configuration
     if getattr(args, "tail_bias_deg", None) is not None:
         if not (math.isfinite(args.tail_bias_deg) and abs(args.tail_bias_deg) <= 40.0):
             raise InputError(f"--tail-bias-deg must be within -40..40 (the tail's range), got "
@@ -259,7 +265,7 @@ _NOT_FOR_MERGE = (("samples", None, "--samples"), ("phase", 1, "--phase"), ("sig
                   ("pre_velocity", None, "--pre-velocity"), ("pre_angvel", None, "--pre-angvel"),
                   ("chunk_size", None, "--chunk-size"), ("feathers", "rigid", "--feathers"),
                   ("float32", False, "--float32"), ("table", None, "--table"),
-                  ("tail_bias_deg", None, "--tail-bias-deg"))
+                  ("tail_bias_deg", None, "--tail-bias-deg"), ("twist_bias_deg", None, "--twist-bias-deg"))
 
 
 def validate_merge(args: argparse.Namespace) -> None:

@@ -56,7 +56,7 @@ def test_tasks_fly_with_the_databases_table(revolving_db):
     (["--samples", "10", "--table", "nope"], "unknown coefficient table 'nope'"),
     (["--samples", "10", "--tail-bias-deg", "45"], "--tail-bias-deg must be within -40..40"),
     (["--samples", "10", "--phase", "2", "--from", "x.db", "--table", "dove_revolving"],
-     "--table and --tail-bias-deg are for phase 1"),
+     "--table, --tail-bias-deg and --twist-bias-deg are for phase 1"),
     (["--merge", "a.db", "b.db", "--table", "dove_revolving"], "--table is for training"),
 ])
 def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
@@ -66,3 +66,23 @@ def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
     err = capsys.readouterr().err.strip()
     assert code == 2 and fragment in err and "\n" not in err, err
     assert not (tmp_path / "out.db").exists()
+
+
+def test_twist_bias_moves_only_the_shoulder_twists():
+    from flapsim.bird.model import DOF_NAMES
+    from flapsim.bird.sampling import SamplingConfig
+    from flapsim.bird.wingbeat import p0, with_tail_bias, with_twist_bias
+
+    base = with_tail_bias(p0(), 17.0)
+    p = with_twist_bias(base, -8.0)
+    moved = np.flatnonzero(p != base)
+    want = sorted(2 * DOF_NAMES.index(f"{s}_shoulder_twist") + 1 for s in "lr")
+    assert moved.tolist() == want
+    np.testing.assert_allclose(p[moved] - base[moved], np.radians(-8.0), rtol=0, atol=1e-15)
+    # the bundled database's configuration (no such key) reads back as no bias, and a
+    # configuration without a bias writes none (its header stays as it was)
+    cfg = SamplingConfig.from_dict(load_database(bundled_database_path()).header["config"])
+    assert cfg.twist_bias_deg == 0.0 and "twist_bias_deg" not in cfg.to_dict()
+    assert SamplingConfig(twist_bias_deg=-8.0).to_dict()["twist_bias_deg"] == -8.0
+    with pytest.raises(InputError, match="--twist-bias-deg must be within"):
+        SamplingConfig(twist_bias_deg=45.0).validate()
