@@ -290,7 +290,7 @@ def run_eval(args: argparse.Namespace) -> dict:
     from flapsim.commands.eval import execute
 
     workers = int(getattr(args, "workers", None) or 2)
-    opts = scenarios.EvalOptions(db=getattr(args, "db", None))
+    opts = scenarios.EvalOptions(db=getattr(args, "db", None), predict=getattr(args, "predict", "simulate"))
     runs = [(n, opts) for n in scenarios.names(family="flight", all_only=True)]
     t0 = time.perf_counter()
     results = execute(runs, workers)
@@ -303,8 +303,9 @@ def run_eval(args: argparse.Namespace) -> dict:
     out = {"target": "eval", "workers": workers, "runs": len(results), "wall_s": wall,
            "runs_wall_s": busy, "speedup": busy / wall, "parallel_efficiency": busy / wall / workers,
            "simulated_s": sim, "simulated_per_wall_s": sim / wall,
-           "failed": [r["scenario"] for r in results if not r.get("ok")]}
-    print(f"flight evaluation suite: {len(results)} runs in {wall:.0f} s on {workers} workers "
+           "failed": [r["scenario"] for r in results if not r.get("ok")], "predict": opts.predict}
+    print(f"flight evaluation suite (S0: {opts.predict}): {len(results)} runs in {wall:.0f} s on "
+          f"{workers} workers "
           f"(speed-up {out['speedup']:.2f}, efficiency {out['parallel_efficiency']:.2f}); "
           f"{sim:.0f} s simulated, {out['simulated_per_wall_s']:.1f} simulated s per wall s")
     return out

@@ -46,6 +46,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="'dove': rigid feathers (default) or modal ones (measured with rigid in "
                         "the same run, for the cost ratio)")
     add_input_arg(p, "--db", default=None, help="database for 'controller' (default: the bundled one)")
+    p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
+                   help="'eval': how the controller finds S0 (default simulate; see flapsim fly "
+                        "--help)")
 
 
 def run(args: argparse.Namespace) -> dict:
