@@ -86,3 +86,18 @@ def test_twist_bias_moves_only_the_shoulder_twists():
     assert SamplingConfig(twist_bias_deg=-8.0).to_dict()["twist_bias_deg"] == -8.0
     with pytest.raises(InputError, match="--twist-bias-deg must be within"):
         SamplingConfig(twist_bias_deg=45.0).validate()
+
+
+def test_train_options_reach_the_sampling_configuration(tmp_path):
+    import argparse
+
+    from flapsim.commands import train
+
+    p = argparse.ArgumentParser()
+    train.add_arguments(p)
+    args = p.parse_args(["--samples", "10", "--out", str(tmp_path / "o.db"), "--table", "dove_revolving",
+                         "--tail-bias-deg", "25", "--twist-bias-deg", "-8"])
+    cfg, _ = train.phase1(args)
+    assert (cfg.table, cfg.tail_bias_deg, cfg.twist_bias_deg) == ("dove_revolving", 25.0, -8.0)
+    cfg, _ = train.phase1(p.parse_args(["--samples", "10", "--out", str(tmp_path / "o.db")]))
+    assert (cfg.table, cfg.tail_bias_deg, cfg.twist_bias_deg) == ("dickinson1999_profile", 17.0, 0.0)
