@@ -95,6 +95,7 @@ def test_train_options_reach_the_sampling_configuration(tmp_path):
 
     p = argparse.ArgumentParser()
     train.add_arguments(p)
+    p.add_argument("--seed", type=int, default=0)  # every command's (flapsim.cli)
     args = p.parse_args(["--samples", "10", "--out", str(tmp_path / "o.db"), "--table", "dove_revolving",
                          "--tail-bias-deg", "25", "--twist-bias-deg", "-8"])
     cfg, _ = train.phase1(args)
