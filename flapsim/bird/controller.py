@@ -631,10 +631,11 @@ class CoarsePredictor:
     m/s in the body velocity, 0.014-0.036 rad/s in the angular velocity, 1-2 % of the
     database's dS spread; the rising figure of eight completes at all 7 asked speeds
     6.995-7.005 m/s, against 3 of 7 at 1400 Hz and none at 1300. At 1200 Hz the misses are
-    5-10x larger and it is lost, with or without a bias correction from fine wingbeats:
-    the servos of the light distal joints (kp 10 N m/rad on the wrist's 2.4e-6 kg m^2
-    effective inertia: ~320 Hz) are then stepped at omega dt = 1.7, near the explicit
-    position feedback's limit of 2 (0.84 at 2400 Hz, 1.3 at 1600 Hz)."""
+    5-10x larger and it is lost, with or without a bias correction from fine wingbeats;
+    likely (inferred, not tested) because the servos of the light distal joints (kp 10
+    N m/rad on the wrist's 2.4e-6 kg m^2 effective inertia: ~320 Hz) are then stepped at
+    omega dt = 1.7, near the explicit position feedback's limit of 2 (0.84 at 2400 Hz, 1.3
+    at 1600 Hz)."""
 
     rate_hz: float = COARSE_RATE_HZ
     _twin: object = None
