@@ -284,6 +284,9 @@ class SamplingConfig(StoredConfig):
                 raise InputError(f"{name} must be a finite non-negative number, got {v}")
         if not (1.0 <= self.cruise_speed <= 20.0):
             raise InputError(f"cruise speed must be 1..20 m/s, got {self.cruise_speed}")
+        if not (np.isfinite(self.tail_bias_deg) and abs(self.tail_bias_deg) <= 40.0):
+            raise InputError(f"--tail-bias-deg must be within -40..40 (the tail's range), got "
+                             f"{self.tail_bias_deg}")
         if not (np.isfinite(self.twist_bias_deg) and abs(self.twist_bias_deg) <= 30.0):
             raise InputError(f"--twist-bias-deg must be within -30..30, got {self.twist_bias_deg}")
 

@@ -184,13 +184,12 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
 
         kwargs["table"] = get_table(args.table).name  # an unknown name: one-line error here
     if getattr(args, "twist_bias_deg", None) is not None:
-        kwargs["twist_bias_deg"] = float(args.twist_bias_deg)  # checked by the configuration
+        kwargs["twist_bias_deg"] = float(args.twist_bias_deg)
     if getattr(args, "tail_bias_deg", None) is not None:
-        if not (math.isfinite(args.tail_bias_deg) and abs(args.tail_bias_deg) <= 40.0):
-            raise InputError(f"--tail-bias-deg must be within -40..40 (the tail's range), got "
-                             f"{args.tail_bias_deg}")
         kwargs["tail_bias_deg"] = float(args.tail_bias_deg)
-    return SamplingConfig(**kwargs), SampleWorker
+    config = SamplingConfig(**kwargs)
+    config.validate()  # here, one line: in a worker it would only kill the pool
+    return config, SampleWorker
 
 
 def discovery_path(out: str | Path) -> Path:
