@@ -89,53 +89,23 @@ def wrap(a: float | np.ndarray) -> float | np.ndarray:
     return -((-np.asarray(a) + np.pi) % (2 * np.pi) - np.pi)
 
 
-def _fingerprint(m: mujoco.MjModel) -> bytes:
-    """What :func:`dof_angles` and :func:`model_dof_ranges` read from the model (a few
-    microseconds, against ~0.2 ms to read it again by name every wingbeat): their caches
-    follow any edit of it."""
-    return b"".join(a.tobytes() for a in (m.jnt_range, m.jnt_limited, m.tendon_range,
-                                          m.tendon_limited, m.wrap_prm, m.wrap_objid))
-
-
-def _cached(fl: DoveFlight, name: str, build):
-    key = (id(fl.model), _fingerprint(fl.model))
-    hit = getattr(fl, name, None)
-    if hit is None or hit[0] != key:
-        hit = (key, build())
-        setattr(fl, name, hit)
-    return hit[1]
-
-
-def _tendon_dofs(fl: DoveFlight) -> list[tuple[int, np.ndarray, np.ndarray]]:
-    m, dv = fl.model, fl.dove
-    out = []
-    for i in np.flatnonzero(dv.qadr < 0):
-        t = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, DOF_NAMES[i])
-        w = np.arange(m.tendon_adr[t], m.tendon_adr[t] + m.tendon_num[t])
-        out.append((int(i), m.wrap_prm[w].copy(), m.jnt_qposadr[m.wrap_objid[w]].copy()))
-    return out
-
-
 def dof_angles(fl: DoveFlight, qpos: np.ndarray) -> np.ndarray:
     """(n, 14) angles of the 14 DOF from (n, nq) positions (a tendon DOF: its length, the
     coefficient-weighted sum of its joints)."""
-    dv = fl.dove
+    m, dv = fl.model, fl.dove
     qpos = np.atleast_2d(qpos)
     out = np.where(dv.qadr >= 0, qpos[:, np.maximum(dv.qadr, 0)], 0.0)
-    for i, coef, adr in _cached(fl, "_tendon_dof_cache", lambda: _tendon_dofs(fl)):
-        for c, a in zip(coef, adr, strict=True):  # in the wrap order, as MuJoCo sums
-            out[:, i] += c * qpos[:, a]
+    for i in np.flatnonzero(dv.qadr < 0):
+        t = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, DOF_NAMES[i])
+        a, k = m.tendon_adr[t], m.tendon_num[t]
+        for w in range(a, a + k):
+            out[:, i] += m.wrap_prm[w] * qpos[:, m.jnt_qposadr[m.wrap_objid[w]]]
     return out
 
 
 def model_dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) of the 14 DOF from the compiled model (joint ranges; the tail spread's
     tendon range); +-inf where a DOF is unlimited."""
-    lo, hi = _cached(fl, "_dof_range_cache", lambda: _dof_ranges(fl))
-    return lo.copy(), hi.copy()
-
-
-def _dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
     m, dv = fl.model, fl.dove
     lo, hi = np.full(len(dv.qadr), -np.inf), np.full(len(dv.qadr), np.inf)
     for i in range(len(dv.qadr)):
