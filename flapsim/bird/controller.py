@@ -608,7 +608,7 @@ class S0Predictor:
             mujoco.mju_mulQuat(q, quat, q_rel)
             physics = snap.physics.copy()
             physics[0] += T
-            e0 = cycle.CycleEnd(cycle.Snapshot(physics, snap.warmstart), guess + self.bias,
+            e0 = cycle.CycleEnd(cycle.Snapshot(physics, snap.warmstart, snap.userdata), guess + self.bias,
                                 pos + T * vel + R @ dp, q, vel + R @ dv, T, 0.0, predicted=True)
         self.count += 1
         return e0

@@ -33,6 +33,9 @@ class Snapshot:
     """``mj_getState(..., mjSTATE_FULLPHYSICS)``."""
     warmstart: np.ndarray
     """(nv,) ``qacc_warmstart``: the constraint solver's starting point."""
+    userdata: np.ndarray | None = None
+    """``userdata``: the twist hinges' memory of the bones' last velocities
+    (:mod:`flapsim.fluid.hinges`); None: left as it is on restore."""
 
 
 @dataclass(frozen=True)
@@ -66,7 +69,7 @@ def snapshot(fl: DoveFlight) -> Snapshot:
     m, d = fl.model, fl.data
     s = np.empty(mujoco.mj_stateSize(m, STATE_SPEC))
     mujoco.mj_getState(m, d, s, STATE_SPEC)
-    return Snapshot(s, d.qacc_warmstart.copy())
+    return Snapshot(s, d.qacc_warmstart.copy(), d.userdata.copy())
 
 
 def restore(fl: DoveFlight, snap: Snapshot) -> None:
@@ -74,6 +77,8 @@ def restore(fl: DoveFlight, snap: Snapshot) -> None:
     m, d = fl.model, fl.data
     mujoco.mj_setState(m, d, snap.physics, STATE_SPEC)
     d.qacc_warmstart[:] = snap.warmstart
+    if snap.userdata is not None:
+        d.userdata[:] = snap.userdata
     d.ctrl[:] = 0.0
     mujoco.mj_forward(m, d)
 
@@ -199,7 +204,8 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
     mujoco.mj_subtreeVel(m, d)
     com_vel = d.subtree_linvel[fl.dove.trunk].copy()
     qpos = states[:, 1:1 + m.nq].copy() if record else None
-    return CycleEnd(Snapshot(states[-1].copy(), d.qacc_warmstart.copy()), reduced_state(d),
+    return CycleEnd(Snapshot(states[-1].copy(), d.qacc_warmstart.copy(), d.userdata.copy()),
+                    reduced_state(d),
                     d.qpos[0:3].copy(), d.qpos[3:7].copy(), com_vel, n * float(m.opt.timestep),
                     excess, qpos)
 

@@ -172,7 +172,8 @@ class DoveFlight:
                                        plucked=self.plucked)
         self.aero = SurfaceForces(m, self.polygons,
                                   [get_table(self.table), bluff_body(self.dove.params.body_drag_cd)],
-                                  FluidParams(AIR_DENSITY), self.flow, name="dove feathers and body")
+                                  FluidParams(AIR_DENSITY), self.flow, name="dove feathers and body",
+                                  hinges=self.dove.twist_hinges() if self.modal is None else None)
         self.registration = self.aero.register(self.data)
         self._modal_registration = self.modal.register(self.data) if self.modal else None
         self.kp, self.kv = affine_gains(m)
@@ -319,7 +320,9 @@ class DoveFlight:
         size = mujoco.mj_stateSize(m, spec)
         state0 = np.empty(size)
         mujoco.mj_getState(m, d, state0, spec)
-        states, _ = rollout.rollout(m, d, state0[None], ctrl[None], skip_checks=False)
+        # the warm start too: the feathers' twist hinges read the last step's accelerations
+        states, _ = rollout.rollout(m, d, state0[None], ctrl[None], skip_checks=False,
+                                    initial_warmstart=d.qacc_warmstart[None].copy())
         states = states[0]
         mujoco.mj_setState(m, d, states[-1], spec)
         mujoco.mj_forward(m, d)
@@ -415,7 +418,6 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
         trunk = d.xpos[dove.trunk].copy()
         down_area, up_area = [], []
         feathers = fl.polygons.table != BODY_TABLE
-        nz = np.array(fl.polygons.normal)[feathers]
         areas = fl.polygons.area[feathers]
         ds = fl.ref.period * split_w(p) * 0.55
         for k in range(len(ctrl)):
@@ -426,8 +428,7 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
             r = points - trunk
             M += float(np.sum(r[:, 0] * f[:, 2] - r[:, 2] * f[:, 0]))
             if fl.modal is None:
-                R = d.xmat[fl.polygons.body[feathers]].reshape(-1, 3, 3)
-                proj = float(np.sum(areas * np.abs(np.einsum("nij,nj->ni", R, nz)[:, 2])))
+                proj = float(np.sum(areas * np.abs(fl.aero.world_normals(d)[feathers, 2])))
             else:  # the deformed triangles
                 mr = fl.modal.evaluate(d)
                 proj = float(np.sum(mr.area * np.abs(mr.normal[:, 2])))

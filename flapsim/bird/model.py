@@ -50,6 +50,7 @@ import numpy as np
 from flapsim.assets import asset_path
 from flapsim.bird import feathers as fz
 from flapsim.errors import DataFileError, ModelError
+from flapsim.fluid.hinges import userdata_size
 
 PARAM_FILE = Path(__file__).resolve().parent / "data" / "dove.toml"
 #: Name suffix of the visual-only underside twin of each feather mesh (not a force polygon).
@@ -506,15 +507,24 @@ _HEADER = """<mujoco model="dove">
 
 
 def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
-              modal: object | None = None) -> str:
+              modal: object | None = None, twist: str | None = None) -> str:
     """The complete dove MJCF as a string (meshes inline).
 
     ``fixed_trunk_pitch_deg``: weld the trunk to the world (no free joint) at this nose-up
     pitch, for "wind tunnel" measurements. ``modal``: a
     :class:`~flapsim.bird.feather_modes.ModalParams` adds each feather's modes as point-mass
     bodies on slide joints (:func:`flapsim.bird.modal_feathers.modal_xml`); ``None``
-    (default) is the rigid-feather model, unchanged.
+    (default) is the rigid-feather model, unchanged. ``twist``: where the primaries' twist
+    hinges are: ``"separate"`` (the rigid default) on weightless bodies hung from the world,
+    integrated and clamped by the force engine (:mod:`flapsim.fluid.hinges`), or ``"tree"``
+    (the modal default, and the drawing model :meth:`Dove.drawing`) in each primary's body,
+    with a MuJoCo joint limit as the stop.
     """
+    twist = twist or ("tree" if modal is not None else "separate")
+    if twist not in ("separate", "tree"):
+        raise ModelError(f"twist must be 'separate' or 'tree', got {twist!r}")
+    if twist == "separate" and modal is not None:
+        raise ModelError("modal feathers hang their modes on the twisted feather: twist='tree'")
     feathers = all_feathers(p)
     by_body: dict[str, list[fz.Feather]] = {}
     for fe in feathers:
@@ -534,13 +544,18 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
         jdamp=p.joint_damping, jarm=p.joint_armature, nkp=-p.pd_kp, nkv=-p.pd_kv,
         meshes="\n".join(meshes),
     )]
-    trunk = _trunk_xml(p, by_body)
+    trunk = _trunk_xml(p, by_body, twist)
     if fixed_trunk_pitch_deg is not None:
         th = np.radians(fixed_trunk_pitch_deg)
         trunk = trunk.replace('      <freejoint name="root"/>\n', "").replace(
             '<body name="trunk" pos="0 0 10">',
             f'<body name="trunk" pos="0 0 10" quat="{_v((np.cos(th / 2), 0, -np.sin(th / 2), 0))}">')
     out.append(trunk)
+    if twist == "separate":
+        out.append(_twist_bodies_xml(p, by_body))
+        # the hinges' memory of their bones' velocities (flapsim.fluid.hinges)
+        out[0] = out[0].replace('<size memory="4M"/>', f'<size memory="4M" nuserdata='
+                                f'"{userdata_size(2 * len(p.primary_angle_deg))}"/>')
     out.append("  </worldbody>\n")
     out.append(_tendons_xml(p))
     out.append(_actuators_xml(p))
@@ -561,7 +576,7 @@ def _world_tip_y(p: DoveParams) -> np.ndarray:
     return np.array(tips)
 
 
-def _trunk_xml(p: DoveParams, by_body: dict[str, list[fz.Feather]]) -> str:
+def _trunk_xml(p: DoveParams, by_body: dict[str, list[fz.Feather]], twist: str = "tree") -> str:
     tr = _Inertia()
     mh = p.trunk_mass * p.head_mass_fraction
     tr.ellipsoid(p.trunk_mass - mh, (0, 0, 0), p.trunk_semi_axes)
@@ -593,7 +608,7 @@ def _trunk_xml(p: DoveParams, by_body: dict[str, list[fz.Feather]]) -> str:
         '      <camera name="side" pos="0 -0.9 0.05" xyaxes="1 0 0 0 0.1 1" mode="trackcom"/>',
     ]
     for side in ("l", "r"):
-        lines.append(_wing_xml(p, side, by_body))
+        lines.append(_wing_xml(p, side, by_body, twist))
     lines.append(_tail_xml(p, by_body))
     lines.append("    </body>")
     return "\n".join(lines) + "\n"
@@ -618,7 +633,7 @@ def _feather_geoms(fes: list[fz.Feather], cls: str, indent: str) -> list[str]:
     return out
 
 
-def _wing_xml(p: DoveParams, s: str, by_body) -> str:
+def _wing_xml(p: DoveParams, s: str, by_body, twist: str = "tree") -> str:
     th = np.radians(p.shoulder_pitch_deg)
     quat = (np.cos(-th / 2), 0.0, np.sin(-th / 2), 0.0)  # nose-up incidence about +y (both sides)
     Lh, Lf, Lw = p.upper_arm_length, p.forearm_length, p.hand_length
@@ -672,16 +687,58 @@ def _wing_xml(p: DoveParams, s: str, by_body) -> str:
             f"{i3}    {_inertial_xml(pi)}",
             f'{i3}    <joint name="{s}_p{k + 1}_fan" class="primary" axis="{_ax(s, (0, 0, -1))}" '
             f'stiffness="0" damping="0"/>',
+        ]
+        if twist == "tree":
             # axis -shaft: + turns the trailing vane down (open); the range blocks the other way
-            f'{i3}    <joint name="{s}_p{k + 1}_twist" class="primary" '
-            f'axis="{_ax(s, -left_shaft)}" range="0 {tw:.6g}" stiffness="{p.twist_stiffness:.6g}" '
-            f'damping="{p.twist_damping:.6g}" solreflimit="0.001 1" '
-            f'solimplimit="0.95 0.99 0.001"/>',
+            L.append(f'{i3}    <joint name="{s}_p{k + 1}_twist" class="primary" '
+                     f'axis="{_ax(s, -left_shaft)}" range="0 {tw:.6g}" '
+                     f'stiffness="{p.twist_stiffness:.6g}" damping="{p.twist_damping:.6g}" '
+                     'solreflimit="0.001 1" solimplimit="0.95 0.99 0.001"/>')
+        else:
+            # the twist axis, for the force engine (its DOF is a body of its own: _twist_bodies_xml)
+            L.append(f'{i3}    <site name="{s}_p{k + 1}_twist" zaxis="{_ax(s, -left_shaft)}" '
+                     'size="0.001" group="5"/>')
+        L += [
             *_feather_geoms([fe], "primary", i3 + "    "),
             f"{i3}  </body>",
         ]
     L += [f"{i3}</body>", f"{i2}</body>", f"{i1}</body>"]
     return "\n".join(L)
+
+
+def twist_inertia(fe: fz.Feather, axis) -> float:
+    """A primary's moment of inertia about its twist axis through its root (its body's
+    origin): the plate inertia (:func:`~flapsim.bird.feathers.plate_inertia`), kg m^2."""
+    pi = _Inertia()
+    pi.plates([fe])
+    m, c, i = pi.total()
+    u = np.asarray(axis, float) / np.linalg.norm(axis)
+    return float(u @ (i + m * (c @ c * np.eye(3) - np.outer(c, c))) @ u)
+
+
+def _twist_bodies_xml(p: DoveParams, by_body) -> str:
+    """The primaries' twist DOF as the paper integrates them (sec. 6, eq. 10), outside the
+    skeleton: per primary a weightless body hung from the world on a hinge with the plate's
+    inertia about its twist axis as armature, the paper's spring and damper, and the one-sided
+    range that the force engine enforces (:mod:`flapsim.fluid.hinges`). Its axis in the world
+    means nothing: the engine turns the feather's polygons about the axis of the feather's
+    ``*_twist`` site."""
+    tw = np.radians(p.twist_max_deg)
+    L = []
+    for s in ("l", "r"):
+        for k in range(len(p.primary_angle_deg)):
+            fe = by_body[f"{s}_p{k + 1}"][0]
+            left_shaft = fe.shaft if s == "l" else fz.mirror_point(fe.shaft)
+            h = twist_inertia(fe, -(left_shaft if s == "l" else fz.mirror_axis(left_shaft)))
+            L += [
+                f'    <body name="{s}_p{k + 1}_twist">',
+                '      <inertial pos="0 0 0" mass="1e-9" diaginertia="1e-15 1e-15 1e-15"/>',
+                f'      <joint name="{s}_p{k + 1}_twist" type="hinge" axis="1 0 0" limited="false" '
+                f'range="0 {tw:.6g}" stiffness="{p.twist_stiffness:.6g}" '
+                f'damping="{p.twist_damping:.6g}" armature="{h:.6g}"/>',
+                "    </body>",
+            ]
+    return "\n".join(L) + "\n"
 
 
 def _tail_xml(p: DoveParams, by_body) -> str:
@@ -878,6 +935,64 @@ class Dove:
             fwd.append(f)
             names += [name] * nf
         return np.concatenate(bodies), np.concatenate(tris), np.concatenate(fwd), names
+
+    def twist_hinges(self):
+        """The primaries' twist hinges for the force engine
+        (:class:`~flapsim.fluid.hinges.PolygonHinges`), or None when the model has them in the
+        skeleton (``twist="tree"``: modal feathers, or a model generated so)."""
+        from flapsim.fluid.hinges import PolygonHinges
+
+        m = self.model
+        labels, joints, axes, origins, masses, coms, inertias = [], [], [], [], [], [], []
+        for s in ("l", "r"):
+            for k in range(len(self.params.primary_angle_deg)):
+                name = f"{s}_p{k + 1}"
+                site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"{name}_twist")
+                if site < 0:
+                    return None
+                b = m.site_bodyid[site]
+                R = np.zeros(9)
+                mujoco.mju_quat2Mat(R, m.body_iquat[b])
+                R = R.reshape(3, 3)
+                c = m.body_ipos[b].copy()
+                mass = float(m.body_mass[b])
+                io = R @ np.diag(m.body_inertia[b]) @ R.T + mass * (c @ c * np.eye(3) - np.outer(c, c))
+                sq = np.zeros(9)
+                mujoco.mju_quat2Mat(sq, m.site_quat[site])
+                labels.append(name)
+                joints.append(f"{name}_twist")
+                axes.append(sq.reshape(3, 3)[:, 2])
+                origins.append(m.site_pos[site].copy())
+                masses.append(mass)
+                coms.append(c)
+                inertias.append([io[0, 0], io[1, 1], io[2, 2], io[0, 1], io[0, 2], io[1, 2]])
+        return PolygonHinges(tuple(labels), tuple(labels), tuple(joints), np.array(axes), np.array(origins),
+                             np.array(masses), np.array(coms), np.array(inertias))
+
+    def drawing(self) -> tuple[mujoco.MjModel, np.ndarray]:
+        """What videos and the viewer draw: (a model, the index array ``ix`` with which a
+        state's ``qpos[ix]`` is that model's ``qpos``). For the separate twist hinges
+        (:meth:`twist_hinges`) it is this dove generated with the hinges in the primaries'
+        bodies, so MuJoCo draws them twisted; otherwise this model and the identity."""
+        if self.twist_hinges() is None:
+            return self.model, np.arange(self.model.nq)
+        if getattr(self, "_drawing", None) is None:
+            from flapsim.sim.loading import load_model
+
+            shown = load_model(build_xml(self.params, twist="tree"), is_xml=True)
+            m = self.model
+            ix = np.zeros(shown.nq, dtype=int)
+            for j in range(shown.njnt):
+                name = mujoco.mj_id2name(shown, mujoco.mjtObj.mjOBJ_JOINT, j)
+                jj = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+                if jj < 0 or m.jnt_type[jj] != shown.jnt_type[j]:
+                    raise ModelError(f"the drawing model's joint {name!r} is not this dove's "
+                                     "(a model file not generated from these parameters?)")
+                n = {0: 7, 1: 4}.get(int(shown.jnt_type[j]), 1)
+                ix[shown.jnt_qposadr[j]:shown.jnt_qposadr[j] + n] = np.arange(
+                    m.jnt_qposadr[jj], m.jnt_qposadr[jj] + n)
+            self._drawing = (shown, ix)
+        return self._drawing
 
     def hash(self) -> str:
         """Short hash of the model (provenance in result files)."""

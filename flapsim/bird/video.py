@@ -14,12 +14,16 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
     from flapsim.render import ChaseCamera, render_video
 
     model, hook = dove.model, None
+    frames = np.asarray(qpos_steps)
     if dove.modal is not None:
         from flapsim.bird.modal_feathers import video_model
 
         model, hook = video_model(dove)
+    else:  # the primaries drawn twisted (their hinges are outside the skeleton)
+        model, ix = dove.drawing()
+        frames = frames[:, ix]
     dt = float(model.opt.timestep)
     stride = max(1, int(round(1.0 / (fps * dt))))
-    return render_video(model, np.asarray(qpos_steps)[::stride], path, fps=1.0 / (stride * dt),
+    return render_video(model, frames[::stride], path, fps=1.0 / (stride * dt),
                         camera=ChaseCamera("trunk"), width=width, height=height,
                         before_frame=hook)

@@ -124,11 +124,12 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             from flapsim.bird.modal_feathers import FeatherDrawing
 
             draw = FeatherDrawing(fl.dove)
-        # what is drawn: the dove's model, or its display copy with bendable feathers (the
-        # same qpos layout)
-        m = fl.model if draw is None else draw.model
+        # what is drawn: the dove with its primaries' twist hinges in the skeleton (a flight
+        # state's qpos[ix] is its qpos), or the display copy with bendable feathers (the
+        # modal dove's own qpos layout)
+        m, ix = fl.dove.drawing() if draw is None else (draw.model, np.arange(fl.model.nq))
         shown = mujoco.MjData(m)
-        _place(m, shown, fl.data.qpos, draw)
+        _place(m, shown, fl.data.qpos[ix], draw)
         view = AnimalViewer(m, shown, fl.dove.trunk, distance=1.4, launch=launch)
         items = [Polyline(path.point(np.linspace(0, path.length, 400)))] if path is not None else []
         dt = float(m.opt.timestep)
@@ -172,7 +173,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             running = True
             for i, q in enumerate(frames):
                 shown.time = t_start + (i + 1) * stride * dt
-                _place(m, shown, q, draw)
+                _place(m, shown, q[ix], draw)
                 steer = ("following the path\n-" if path is not None else
                          f"{cmd.turn_rate_deg_s:+.0f} deg/s\n{cmd.climb_deg:+.0f} deg")
                 texts = ("steering\nelevation\nspeed\nwind\nkeys",

@@ -41,6 +41,16 @@ from numba import njit
 from flapsim.errors import InputError
 from flapsim.fluid.coefficients import CoefficientTable, get_table
 from flapsim.fluid.flow import FlowField, flow_at
+from flapsim.fluid.hinges import (
+    HF,
+    HS,
+    PolygonHinges,
+    hinge_frames,
+    hinge_torque,
+    hinged_point,
+    hinged_vector,
+    integrator_damping,
+)
 from flapsim.sim.callbacks import (
     CompiledProvider,
     Registration,
@@ -51,6 +61,7 @@ from flapsim.sim.callbacks import (
 from flapsim.sim.wrench import add_force, body_point, body_vector, map_wrenches
 
 RECORD = 16  # floats recorded per polygon by evaluate(): see SurfaceReport
+QFRC_ARG = 26  # surface_kernel's qfrc argument, counted after ``w``
 
 
 def _rows(name: str, a: np.ndarray | Sequence, n: int, width: int) -> np.ndarray:
@@ -329,12 +340,17 @@ def plate_force(rho, eta, area, nx, ny, nz, vx, vy, vz, vn, tx, ty, tz, x, has_f
 
 @njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
 def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, pext, ptab,
-                   cl_tab, cd_tab, flow, params, tnow, ext_flow, rec):
+                   cl_tab, cd_tab, flow, params, tnow, ext_flow, rec, phinge, hint, hflt, hs, qpos,
+                   qvel, qacc, qfrc, qfrc_applied, qM, damping, parent, dofadr, dofnum, cdof,
+                   cdof_dot, cacc, opt, userdata):
     """Add every polygon's force to the body wrench accumulator ``w``.
 
     ``params`` = (density, friction, front_only, surface_z, use_ext_flow); ``cl_tab`` and
     ``cd_tab`` are the tables on the pseudo-angle grid (:func:`pseudo_angle_tables`);
     ``rec`` is filled per polygon when its size allows (see :class:`SurfaceReport`).
+    Polygons with ``phinge >= 0`` ride that hinge (:mod:`flapsim.fluid.hinges`: ``hint``,
+    ``hflt``, scratch ``hs``); the hinges' torques go to their DOF in ``qfrc`` (the
+    remaining arrays are the MuJoCo data and model arrays the hinges read, ``cacc`` scratch).
     """
     rho = params[0]
     eta = params[1]
@@ -343,9 +359,16 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
     use_ext = params[4] > 0.5
     record = rec.size >= 16 * pbody.size
     t = tnow[0]
+    nh = hint.size // 4
+    if nh > 0:
+        hinge_frames(xpos, xmat, qpos, qvel, hint, hflt, hs)
     for i in range(pbody.size):
         b = pbody[i]
-        px, py, pz = body_point(xpos, xmat, b, pc[3 * i], pc[3 * i + 1], pc[3 * i + 2])
+        h = phinge[i] if nh > 0 else -1
+        if h >= 0:
+            px, py, pz = hinged_point(hflt, hs, h, pc[3 * i], pc[3 * i + 1], pc[3 * i + 2])
+        else:
+            px, py, pz = body_point(xpos, xmat, b, pc[3 * i], pc[3 * i + 1], pc[3 * i + 2])
         if record:
             for k in range(16):
                 rec[16 * i + k] = 0.0
@@ -353,7 +376,10 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             rec[16 * i + 14] = py
             rec[16 * i + 15] = pz
         # world normal and forward
-        nx, ny, nz = body_vector(xmat, b, pn[3 * i], pn[3 * i + 1], pn[3 * i + 2])
+        if h >= 0:
+            nx, ny, nz = hinged_vector(hs, h, pn[3 * i], pn[3 * i + 1], pn[3 * i + 2])
+        else:
+            nx, ny, nz = body_vector(xmat, b, pn[3 * i], pn[3 * i + 1], pn[3 * i + 2])
         # submerged fraction under a free surface
         frac = 1.0
         if zs < 1e300:
@@ -384,13 +410,27 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         vx = ux - (cvel[6 * b + 3] + wy * dz - wz * dy)
         vy = uy - (cvel[6 * b + 4] + wz * dx - wx * dz)
         vz = uz - (cvel[6 * b + 5] + wx * dy - wy * dx)
+        if h >= 0:  # and the plate's turning about its hinge
+            so = HS * h
+            rx = px - hs[so + 4]
+            ry = py - hs[so + 5]
+            rz = pz - hs[so + 6]
+            ex = hs[so] * hs[so + 1]
+            ey = hs[so] * hs[so + 2]
+            ez = hs[so] * hs[so + 3]
+            vx -= ey * rz - ez * ry
+            vy -= ez * rx - ex * rz
+            vz -= ex * ry - ey * rx
         vn = vx * nx + vy * ny + vz * nz
         if front_only and vn >= 0.0:
             continue
         area = parea[i] * frac
         # split: drag/lift part (in the N-F plane, or everything) and friction part
         if has_f:
-            fx, fy, fz = body_vector(xmat, b, a, c, e)
+            if h >= 0:
+                fx, fy, fz = hinged_vector(hs, h, a, c, e)
+            else:
+                fx, fy, fz = body_vector(xmat, b, a, c, e)
             sx = ny * fz - nz * fy
             sy = nz * fx - nx * fz
             sz = nx * fy - ny * fx
@@ -414,6 +454,13 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         Fy = dry + lfy + fry
         Fz = drz + lfz + frz
         add_force(w, b, Fx, Fy, Fz, px, py, pz)
+        if h >= 0:  # the force's torque about the hinge axis
+            so = HS * h
+            rx = px - hs[so + 4]
+            ry = py - hs[so + 5]
+            rz = pz - hs[so + 6]
+            hs[so + 16] += (hs[so + 1] * (ry * Fz - rz * Fy) + hs[so + 2] * (rz * Fx - rx * Fz)
+                            + hs[so + 3] * (rx * Fy - ry * Fx))
         if record:
             o = 16 * i
             rec[o] = drx
@@ -427,10 +474,13 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             rec[o + 8] = frz
             rec[o + 9] = np.arctan2(y, x)
             rec[o + 10] = frac
+    if nh > 0:
+        hinge_torque(hint, hflt, hs, cvel, cacc, scom, rootid, qpos, qvel, qfrc, qfrc_applied, qM,
+                     damping, opt, t, userdata, parent, dofadr, dofnum, cdof, cdof_dot, qacc)
     return 0
 
 
-register_kernel("surfaces", surface_kernel, "ffffiifffffifffffff")
+register_kernel("surfaces", surface_kernel, "ffffiifffffifffffff" + "iiff" + "fffffff" + "iiifffff")
 
 
 @dataclass
@@ -469,10 +519,12 @@ class SurfaceForces(CompiledProvider):
         params: FluidParams | None = None,
         flow: FlowField | None = None,
         name: str = "surface forces",
+        hinges: PolygonHinges | None = None,
     ) -> None:
         self.model = model
         self.polygons = polygons
         self.name = name
+        self.hinges = hinges
         if len(polygons) == 0:
             raise InputError("SurfaceForces needs at least one polygon")
         if polygons.body.min() < 1 or polygons.body.max() >= model.nbody:
@@ -495,6 +547,11 @@ class SurfaceForces(CompiledProvider):
         self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)
         self._ext = np.zeros(3 * len(polygons))
         self._no_record = np.zeros(1)
+        none_i, none_f = np.zeros(0, dtype=np.int64), np.zeros(0)
+        self._phinge, self._hint, self._hflt = none_i, none_i, none_f
+        if hinges is not None and len(hinges):
+            self._phinge, self._hint, self._hflt = hinges.tables(model, polygons.labels, polygons.body)
+            integrator_damping(model)  # an RK4 model is refused here, not at the first step
 
     def set_params(self, params: FluidParams) -> None:
         """Change density, friction or the free surface in place (takes effect at once)."""
@@ -511,8 +568,22 @@ class SurfaceForces(CompiledProvider):
             data.subtree_com.reshape(-1), self._rootid, p.body, p.centroid.reshape(-1),
             p.normal.reshape(-1), p.forward.reshape(-1), p.area, p.extent, p.table, self._cl,
             self._cd, self.flow.params, self._param_array, time_view(data), self._ext,
-            self._no_record if record is None else record,
+            self._no_record if record is None else record, *self._hinge_arrays(model, data),
         ]
+
+    def _hinge_arrays(self, model: mujoco.MjModel, data: mujoco.MjData) -> list[np.ndarray]:
+        """The hinges' arrays (:mod:`flapsim.fluid.hinges`) for one (model, data): their
+        scratch is per registration, the timestep the model's own (a coarser copy, say)."""
+        if self._hint.size == 0:
+            return [self._phinge, self._hint, self._hflt, *[np.zeros(0)] * 8,
+                    *[np.zeros(0, dtype=np.int64)] * 3, *[np.zeros(0)] * 5]
+        i64 = [np.ascontiguousarray(a, dtype=np.int64)
+               for a in (model.body_parentid, model.body_dofadr, model.body_dofnum)]
+        opt = np.array([model.opt.timestep, *model.opt.gravity, integrator_damping(model)])
+        return [self._phinge, self._hint, self._hflt, np.zeros(self._hint.size // 4 * HS),
+                data.qpos, data.qvel, data.qacc_warmstart, data.qfrc_passive, data.qfrc_applied,
+                data.M, model.dof_damping, *i64, data.cdof.reshape(-1), data.cdof_dot.reshape(-1),
+                np.zeros(6 * model.nbody), opt, data.userdata]
 
     def register(self, data: mujoco.MjData, model: mujoco.MjModel | None = None) -> Registration:
         """Apply these forces whenever MuJoCo steps ``data`` (until the handle is removed);
@@ -553,10 +624,30 @@ class SurfaceForces(CompiledProvider):
         return provider
 
     def world_centroids(self, data: mujoco.MjData) -> np.ndarray:
-        """(n, 3) world positions of the polygon centroids."""
+        """(n, 3) world positions of the polygon centroids (hinged ones turned)."""
+        return self._world(data)[0]
+
+    def world_normals(self, data: mujoco.MjData) -> np.ndarray:
+        """(n, 3) world unit normals of the polygons (hinged ones turned)."""
+        return self._world(data)[1]
+
+    def _world(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         p = self.polygons
         R = data.xmat[p.body].reshape(-1, 3, 3)
-        return data.xpos[p.body] + np.einsum("nij,nj->ni", R, p.centroid)
+        pts = data.xpos[p.body] + np.einsum("nij,nj->ni", R, p.centroid)
+        nrm = np.einsum("nij,nj->ni", R, p.normal)
+        if self._hint.size:
+            hs = np.zeros(self._hint.size // 4 * HS)
+            hinge_frames(data.xpos.reshape(-1), data.xmat.reshape(-1), data.qpos, data.qvel,
+                         self._hint, self._hflt, hs)
+            on = self._phinge >= 0
+            h = self._phinge[on]
+            Rw = hs.reshape(-1, HS)[h, 7:16].reshape(-1, 3, 3)
+            ow = hs.reshape(-1, HS)[h, 4:7]
+            o = self._hflt.reshape(-1, HF)[h, 3:6]
+            pts[on] = ow + np.einsum("nij,nj->ni", Rw, p.centroid[on] - o)
+            nrm[on] = np.einsum("nij,nj->ni", Rw, p.normal[on])
+        return pts, nrm
 
     def evaluate(self, data: mujoco.MjData) -> SurfaceReport:
         """Every force term per polygon for the current state (positions and velocities
@@ -571,6 +662,10 @@ class SurfaceForces(CompiledProvider):
             arrays[17] = np.ascontiguousarray(ext, dtype=float).reshape(-1)
             arrays[15] = self._param_array.copy()
             arrays[15][4] = 1.0
+        if self._hint.size:
+            # the hinges' torques and velocity memory: neither applied nor kept
+            arrays[QFRC_ARG] = np.zeros_like(data.qfrc_passive)
+            arrays[-1] = data.userdata.copy()
         surface_kernel(w, *arrays)
         r = rec.reshape(n, 16)
         wb = w.reshape(-1, 6)
