@@ -1,10 +1,13 @@
 """The dove MJCF: generated from its parameter file, mass, DOF, feathers, no self-contact."""
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.model import DOF_NAMES, Dove, DoveParams, build_xml, model_path
+from flapsim.bird.flight import fly
+from flapsim.bird.model import DOF_NAMES, Dove, DoveParams, build_xml, can_touch_anything, model_path
 from flapsim.errors import DataFileError
 
 
@@ -46,7 +49,9 @@ def test_feather_counts_and_twist_joints(dove):
 
 
 def test_no_self_collision_in_any_pose(dove):
-    m = dove.model
+    m = copy.copy(dove.model)
+    # the loaded dove skips collision detection (nothing can touch: next test); look anyway
+    m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     d = mujoco.MjData(m)
     rng = np.random.default_rng(1)
     for _ in range(20):
@@ -168,3 +173,25 @@ def test_model_hash_changes_with_what_a_database_depends_on(edit):
     else:
         q = dataclasses.replace(p, timestep=p.timestep / 2)
     assert Dove.from_params(q).hash() != same
+
+
+def test_collision_detection_is_skipped_only_when_nothing_can_touch(dove):
+    """The bundled scene has no collider outside the bird (its ground plane: contype 0) and
+    its bones collide only with the world, so the loaded dove skips collision detection; the
+    same dove over a colliding ground (contype 1, conaffinity 2 against the bones' 2 and 1)
+    keeps it. Skipping it changes nothing: two wingbeats with and without are bit-identical."""
+    assert dove.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    assert not can_touch_anything(dove.model)
+    params = DoveParams.load()
+    xml = build_xml(params).replace('<geom name="ground" type="plane" size="2000 2000 0.1" '
+                                    'material="grid" contype="0"\n          conaffinity="0"/>',
+                                    '<geom name="ground" type="plane" size="2000 2000 0.1" '
+                                    'material="grid" contype="1" conaffinity="2"/>')
+    grounded = Dove.from_model(mujoco.MjModel.from_xml_string(xml), params)
+    assert can_touch_anything(grounded.model)
+    assert not grounded.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    m = copy.copy(dove.model)
+    m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    a = fly(dove, 2)
+    b = fly(Dove(m, dove.params, dove.trunk, dove.qadr, dove.dadr), 2)
+    assert np.array_equal(a.trunk_pos, b.trunk_pos)
