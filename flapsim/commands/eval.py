@@ -87,6 +87,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"{'/'.join(f'{k:g}' for k in TABLE1_K_PERCENT)}%% on 10,000")
     p.add_argument("--cache", metavar="DIR", default="table1_dbs",
                    help="--table1: folder of the trained databases (default ./table1_dbs)")
+    p.add_argument("--table1-seed", type=int, default=None, metavar="SEED",
+                   help="--table1: the databases' sampling seed (default: the bundled database's, "
+                        "so its size is copied rather than trained)")
     p.add_argument("--sizes", default=None,
                    help="--table1: database sizes to use instead of the paper's, comma-separated")
 
@@ -256,6 +259,13 @@ def _list() -> dict:
 
 # -- Table I --------------------------------------------------------------------------------
 
+def _bundled_seed() -> int:
+    from flapsim.bird.controller import bundled_database_path
+    from flapsim.bird.database import load_database
+
+    return int(load_database(bundled_database_path(), require_finalized=True).header["seed"])
+
+
 def _is_bundled_run(config, n: int) -> bool:
     """True when the bundled database holds exactly ``n`` samples of this configuration's
     run (``train`` still checks the copy's header before accepting it)."""
@@ -295,8 +305,10 @@ def _table1(args: argparse.Namespace, opts) -> dict:
             raise InputError(f"--sizes must each be 100..1e6, got {args.sizes}")
     cache = Path(_dir("--cache", args.cache))
     cache.mkdir(exist_ok=True)
-    # the bundled database's sampling (phase 1, pre-states within 10 deg), seed 1
-    config = SamplingConfig(seed=1, pitch_deg=10.0, roll_deg=10.0)
+    # the bundled database's sampling (phase 1, pre-states within 10 deg) and, unless asked
+    # otherwise, its seed: one draw of the databases, whose spread the README measures
+    seed = args.table1_seed if getattr(args, "table1_seed", None) is not None else _bundled_seed()
+    config = SamplingConfig(seed=seed, pitch_deg=10.0, roll_deg=10.0)
     dbs = {}
     for n in sorted(set(sizes)):
         out = cache / f"phase1_{n}.db"
@@ -331,8 +343,8 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)
-    print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}): "
-          "per-wingbeat means")
+    print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}; "
+          f"databases of sampling seed {seed}): per-wingbeat means")
     head = (f"{'samples':>8} {'k %':>5} {'k':>5} {'status':<10} {'Ep m':>7} {'Er rad':>7} "
             f"{'Eo rad':>7} {'Ef m':>7}")
     print(head)
@@ -347,5 +359,6 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     print("the paper (k-NN, its figure of eight): 10,000 samples, k = 0.5 %: Ep 0.039, Er 0.062, "
           "Eo 0.111, Ef 0.145")
     failed = [f"{row['samples']}/{row['k_percent']}%" for row in rows if not row.get("ok")]
-    return {"table1": rows, "scenario": name, "failed": failed, "exit_status": 1 if failed else 0,
+    return {"table1": rows, "scenario": name, "seed": seed, "failed": failed,
+            "exit_status": 1 if failed else 0,
             "databases": {str(k): str(v) for k, v in dbs.items()}}

@@ -228,7 +228,13 @@ def test_table1_trains_its_databases_and_counts_k_among_the_searched_samples(tmp
     js = tmp_path / "t1.json"
     main(["eval", "--table1", "--sizes", "100,200", "--quick", "--cache", str(tmp_path / "dbs"),
           "--workers", "2", "--json", str(js)])
-    rows = json.loads(js.read_text())["table1"]
+    out = json.loads(js.read_text())
+    rows = out["table1"]
+    # the bundled database's seed by default (its header: seed 2), in the databases made too
+    from flapsim.bird.database import load_database
+
+    assert out["seed"] == 2
+    assert load_database(tmp_path / "dbs" / "phase1_100.db").header["seed"] == 2
     assert [(r["samples"], r["k_percent"], r["k"]) for r in rows] == [
         (100, 0.5, 1), (200, 0.5, 2), (200, 2.0, 8), (200, 1.0, 4), (200, 0.3, 1)]
     assert (tmp_path / "dbs" / "phase1_200.db").exists()
