@@ -410,8 +410,9 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         vx = ux - (cvel[6 * b + 3] + wy * dz - wz * dy)
         vy = uy - (cvel[6 * b + 4] + wz * dx - wx * dz)
         vz = uz - (cvel[6 * b + 5] + wx * dy - wy * dx)
+        so = HS * h
+        rx = ry = rz = 0.0  # the centroid from its hinge's axis (hinged polygons only)
         if h >= 0:  # and the plate's turning about its hinge
-            so = HS * h
             rx = px - hs[so + 4]
             ry = py - hs[so + 5]
             rz = pz - hs[so + 6]
@@ -455,10 +456,6 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         Fz = drz + lfz + frz
         add_force(w, b, Fx, Fy, Fz, px, py, pz)
         if h >= 0:  # the force's torque about the hinge axis
-            so = HS * h
-            rx = px - hs[so + 4]
-            ry = py - hs[so + 5]
-            rz = pz - hs[so + 6]
             hs[so + 16] += (hs[so + 1] * (ry * Fz - rz * Fy) + hs[so + 2] * (rz * Fx - rx * Fz)
                             + hs[so + 3] * (rx * Fy - ry * Fx))
         if record:
