@@ -72,15 +72,18 @@ def snapshot(fl: DoveFlight) -> Snapshot:
     return Snapshot(s, d.qacc_warmstart.copy(), d.userdata.copy())
 
 
-def restore(fl: DoveFlight, snap: Snapshot) -> None:
-    """Put the flight back into ``snap`` (bit-identical continuation)."""
+def restore(fl: DoveFlight, snap: Snapshot, forward: bool = True) -> None:
+    """Put the flight back into ``snap`` (bit-identical continuation). ``forward=False``
+    skips the ``mj_forward`` that makes the data's derived quantities (positions of bodies,
+    forces) current: for a caller that only steps on from here."""
     m, d = fl.model, fl.data
     mujoco.mj_setState(m, d, snap.physics, STATE_SPEC)
     d.qacc_warmstart[:] = snap.warmstart
     if snap.userdata is not None:
         d.userdata[:] = snap.userdata
     d.ctrl[:] = 0.0
-    mujoco.mj_forward(m, d)
+    if forward:
+        mujoco.mj_forward(m, d)
 
 
 def heading_and_climb(v: np.ndarray) -> tuple[float, float]:
@@ -103,14 +106,28 @@ def dof_angles(fl: DoveFlight, qpos: np.ndarray) -> np.ndarray:
     for i in np.flatnonzero(dv.qadr < 0):
         t = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, DOF_NAMES[i])
         a, k = m.tendon_adr[t], m.tendon_num[t]
-        for w in range(a, a + k):
-            out[:, i] += m.wrap_prm[w] * qpos[:, m.jnt_qposadr[m.wrap_objid[w]]]
+        objs = m.wrap_objid[a:a + k]
+        out[:, i] = qpos[:, m.jnt_qposadr[objs]] @ m.wrap_prm[a:a + k]
     return out
 
 
 def model_dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) of the 14 DOF from the compiled model (joint ranges; the tail spread's
     tendon range); +-inf where a DOF is unlimited."""
+    m = fl.model
+    # read twice a wingbeat by the controller: cached, keyed on the ranges themselves so that
+    # a model edited in place is read afresh
+    key = (m.jnt_range.tobytes(), m.jnt_limited.tobytes(), m.tendon_range.tobytes(),
+           m.tendon_limited.tobytes())
+    cached = getattr(fl, "_dof_ranges_cache", None)
+    if cached is None or cached[0] != key:
+        cached = (key, _dof_ranges(fl))
+        fl._dof_ranges_cache = cached
+    lo, hi = cached[1]
+    return lo.copy(), hi.copy()
+
+
+def _dof_ranges(fl: DoveFlight) -> tuple[np.ndarray, np.ndarray]:
     m, dv = fl.model, fl.dove
     lo, hi = np.full(len(dv.qadr), -np.inf), np.full(len(dv.qadr), np.inf)
     for i in range(len(dv.qadr)):
@@ -153,6 +170,23 @@ def _push_controls(m: mujoco.MjModel, ctrl: np.ndarray, push: Push) -> tuple[np.
     return out, int(spec)
 
 
+def _controls(fl: DoveFlight, ref: ReferenceWingbeat, p: np.ndarray) -> np.ndarray:
+    """The control table of wingbeat ``p``; the last few are kept, since the learned
+    controller flies the same reference wingbeat P0 every wingbeat."""
+    m = fl.model
+    key = (id(ref), ref.coef.tobytes(), float(ref.period), np.asarray(p, float).tobytes(),
+           float(m.opt.timestep), fl.kp.tobytes(), fl.kv.tobytes())
+    cache = fl.__dict__.setdefault("_control_cache", {})
+    ctrl = cache.pop(key, None)
+    if ctrl is None:
+        ctrl, _, _ = control_table(ref, p, m.opt.timestep, fl.kp, fl.kv)
+        ctrl.setflags(write=False)
+        if len(cache) >= 4:
+            cache.pop(next(iter(cache)))  # the least recently used
+    cache[key] = ctrl
+    return ctrl
+
+
 def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
               ref: ReferenceWingbeat | None = None, record: bool = False,
               push: Push | None = None) -> CycleEnd:
@@ -172,9 +206,9 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
         raise SimulationError("the dove's feather forces are not registered (the passive "
                               "dispatcher was cleared): build a new DoveFlight")
     if snap is not None:
-        restore(fl, snap)
+        restore(fl, snap, forward=False)  # rollout steps from the state alone
     ref = ref or fl.ref
-    ctrl, _, _ = control_table(ref, p, m.opt.timestep, fl.kp, fl.kv)
+    ctrl = _controls(fl, ref, p)
     s0 = np.empty(mujoco.mj_stateSize(m, STATE_SPEC))
     mujoco.mj_getState(m, d, s0, STATE_SPEC)
     warm = d.qacc_warmstart.copy()

@@ -172,6 +172,17 @@ def in_ranges(ref: ReferenceWingbeat, p: np.ndarray, lo: np.ndarray, hi: np.ndar
     return bool(np.all(qmin >= lo) and np.all(qmax <= hi))
 
 
+def _deviations(ref: ReferenceWingbeat) -> np.ndarray:
+    """(64, 14) the reference wingbeat's angles about their means over one cycle (asked for
+    every controlled wingbeat: kept on the reference, which is immutable)."""
+    r = ref.__dict__.get("_deviations64")
+    if r is None:
+        r = ref.angles(np.arange(64) / 64) - ref.mean
+        r.setflags(write=False)
+        ref.__dict__["_deviations64"] = r
+    return r
+
+
 def project_to_ranges(ref: ReferenceWingbeat, p: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                       margin: float = np.radians(1.0)) -> np.ndarray:
     """The nearest wingbeat (per DOF: shrink the scale, then shift) whose commanded
@@ -179,7 +190,7 @@ def project_to_ranges(ref: ReferenceWingbeat, p: np.ndarray, lo: np.ndarray, hi:
     s, t, w = split(p)
     s, t = s.copy(), t.copy()
     m = ref.mean
-    r = ref.angles(np.arange(64) / 64) - m
+    r = _deviations(ref)
     lo_m, hi_m = lo + margin, hi - margin
     for i in range(N_DOF):
         if not np.isfinite(lo[i]) and not np.isfinite(hi[i]):
