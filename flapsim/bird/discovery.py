@@ -101,7 +101,8 @@ class DiscoveryConfig(StoredConfig):
     method: str = "knn"
     """Regression: ``knn`` (paper) or ``lwlr``."""
     k: int = 0
-    """Neighbours (0: 0.5 % of the database)."""
+    """Neighbours (0: the method's default share of the database,
+    :data:`~flapsim.bird.controller.DEFAULT_K_SHARE`)."""
     alpha_max_deg: float = 30.0
     """Steering asked within +-this per wingbeat, deg."""
     beta_max_deg: float = 15.0

@@ -55,7 +55,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "linear regression) or knn (the paper's k-NN average, which does not hold "
                         "this dove level: see the README)")
     p.add_argument("--k", type=int, default=None,
-                   help="neighbours of the regression (default 0.5%% of the database)")
+                   help="neighbours of the regression (default: 2%% of the samples searched for "
+                        "lwlr, 0.5%% for knn)")
     add_regression_arguments(p)
     p.add_argument("--roll-deg", type=float, default=0.0,
                    help="initial roll error, deg (+ right wing down)")

@@ -22,7 +22,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_input_arg(p, "--db", metavar="DB", help="controller database (default: the bundled one)")
     p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
                    help="regression of the wingbeat controller (default lwlr)")
-    p.add_argument("--k", type=int, default=None, help="neighbours (default 0.5%% of the database)")
+    p.add_argument("--k", type=int, default=None,
+                   help="neighbours (default: 2%% of the samples searched for lwlr, 0.5%% for knn)")
     add_regression_arguments(p)
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="rigid feather plates (default) or modal feathers, drawn bent (needs --db: a "

@@ -49,11 +49,13 @@ def test_bundled_database_is_for_this_model_and_finished():
                        require_finalized=True)
     assert db.header["kind"] in ("dove-phase1", "dove-phase2")
     assert db.n >= 1000 and db.arrays["dP"].shape == (db.n, 29)
-    # the regression searches every sample and its mirror image; k is 0.5 % of both
+    # the regression searches every sample and its mirror image; k is 2 % of both for LWLR
+    # (the default method) and the paper's 0.5 % for k-NN
     fl = DoveFlight(Dove.load())
     try:
         assert load_controller(fl).regressor.n == 2 * db.n
-        assert load_controller(fl).regressor.k == round(0.005 * 2 * db.n)
+        assert load_controller(fl).regressor.k == round(0.02 * 2 * db.n)
+        assert load_controller(fl, method="knn").regressor.k == round(0.005 * 2 * db.n)
         assert load_controller(fl, mirror=False).regressor.n == db.n
     finally:
         fl.close()

@@ -68,6 +68,16 @@ def test_default_k_is_half_a_percent():
     assert default_k(100) == 1 and default_k(10) == 1
 
 
+def test_default_k_per_method():
+    # k-NN keeps the paper's 0.5 %; LWLR's 9-coefficient fits take 2 % (the paper's sweep's
+    # largest share), 4x as many: 2000 samples -> 10 and 40 neighbours
+    rng = np.random.default_rng(0)
+    dS, dP = rng.normal(size=(2000, 8)), rng.normal(size=(2000, 29))
+    assert Regressor(dS, dP, method="knn").k == 10
+    assert Regressor(dS, dP, method="lwlr").k == 40
+    assert Regressor(dS, dP, k=7, method="lwlr").k == 7
+
+
 def test_lwlr_recovers_a_linear_map_exactly():
     # on exactly linear data the weighted affine fit is exact (up to the small ridge):
     # k-NN averaging cannot do this away from the samples' mean
