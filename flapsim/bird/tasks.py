@@ -118,6 +118,10 @@ class Task:
     """Default: enough for 1.5x the path's length at ``speed``."""
     stop_when_lost_m: float = 15.0
     """Give up when this far from the path (nothing more to learn), m."""
+    bank_lead_s: float | None = None
+    """The path target asks the bank its recovery curve has this long after the wingbeat's
+    end, s (None: :class:`~flapsim.bird.path.PathTarget`'s default, 0.3; 0: at the end, the
+    paper's)."""
 
 
 @dataclass
@@ -192,7 +196,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
     try:
         cfg = FlightConfig(speed=task.speed)
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
-        target = PathTarget(trim, task.path, speed=task.speed)
+        lead = {} if task.bank_lead_s is None else {"bank_lead_s": float(task.bank_lead_s)}
+        target = PathTarget(trim, task.path, speed=task.speed, **lead)
         if any(task.wind) or task.flow:
             # the bird feels the air it flies through (and flies its path relative to it)
             target.wind = lambda p, t: fl.flow.velocity(np.asarray(p, float)[None], t)[0]

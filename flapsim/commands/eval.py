@@ -5,6 +5,7 @@ and videos. ``--table1`` reproduces Table I itself: database sizes and neighbour
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from pathlib import Path
 
@@ -66,6 +67,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--k", type=int, default=None,
                    help="neighbours (default: 2%% of the samples searched for lwlr, 0.5%% for knn)")
     add_regression_arguments(p)
+    p.add_argument("--bank-lead", type=float, default=None, metavar="S",
+                   help="flight: the path target asks the bank its recovery curve has S seconds "
+                        "after the wingbeat's end (default 0.3; 0: at the end, the paper's; "
+                        "--table1 uses 0)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
@@ -143,9 +148,11 @@ def run(args: argparse.Namespace) -> dict:
 
         require_gl()
     check_regression_options(args)
+    if args.bank_lead is not None and not (math.isfinite(args.bank_lead) and 0.0 <= args.bank_lead <= 1.0):
+        raise InputError(f"--bank-lead must be 0..1 s (within the 1 s look-ahead), got {args.bank_lead}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
-                                 predict=args.predict, layers=args.layers,
+                                 predict=args.predict, bank_lead_s=args.bank_lead, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
     if args.feathers != "rigid" and not args.db:
@@ -333,6 +340,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     for n in sizes:
         o = copy.copy(opts)
         o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
+        o.bank_lead_s = 0.0  # the paper's path controller: the bank of the wingbeat's end
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
     base = 10000 if 10000 in dbs else max(dbs)
@@ -341,6 +349,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
             continue
         o = copy.copy(opts)
         o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
+        o.bank_lead_s = 0.0
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)

@@ -70,6 +70,9 @@ class EvalOptions:
     only, the paper's)."""
     predict: str = "simulate"
     """Flight: how the controller finds S0 (:func:`flapsim.bird.controller.load_controller`)."""
+    bank_lead_s: float | None = None
+    """Flight: the path target asks the bank this long ahead, s (None: its default, 0.3;
+    0: at the wingbeat's end, the paper's)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

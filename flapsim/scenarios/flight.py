@@ -51,8 +51,12 @@ def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
 
 def _fly_task(task, opt: EvalOptions, record: bool):
     """:func:`~flapsim.bird.tasks.fly_task` with the options' controller."""
+    import dataclasses
+
     from flapsim.bird.tasks import fly_task
 
+    if opt.bank_lead_s is not None:
+        task = dataclasses.replace(task, bank_lead_s=opt.bank_lead_s)
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
                     clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict)
 

@@ -252,3 +252,55 @@ def test_in_a_crosswind_the_bird_crabs_so_that_its_ground_track_is_the_path():
     assert quat_distance(tgt.desired[-1][1], _attitude_quat(heading, trim.aoa, 0.0)) < 1e-3
     # S carries the ground velocity in the body frame: its speed is the ground speed
     assert np.linalg.norm(S[2:5]) == pytest.approx(np.sqrt(45.0), abs=0.02)
+
+
+@pytest.mark.parametrize("lead", [0.0, 0.2])
+def test_the_bank_asked_is_the_recovery_curves_bank_lead_seconds_on(lead):
+    # a bird 1 m left of a straight path along +x, flying along it at 7 m/s: the recovery
+    # curve to the point 7 m ahead (tangent 7 m/s, T = 1 s) is x = x0 + 7 t and
+    # y(u) = (2u^3 - 3u^2 + 1) y0, so at time u its acceleration is (0, (12u - 6) y0, 0) and
+    # its velocity (7, (6u^2 - 6u) y0, 0); eq. 5's bank is atan(a_lat / g) with a_lat the
+    # acceleration across the velocity. Asked at u = dt + lead; the curve itself (the
+    # evaluation's desired attitude) at u = dt. Tolerance: the closest path point is found on
+    # 5 cm samples, which moves the look-ahead point along x by < 2.5 cm: < 1e-4 rad here
+    from flapsim.bird.controller import GRAVITY, Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget
+
+    def bank(u, y0=1.0):
+        ay, vy = (12 * u - 6) * y0, (6 * u * u - 6 * u) * y0
+        return np.arctan(ay * 7.0 / np.hypot(7.0, vy) / GRAVITY)
+
+    path = FlightPath(np.array([[0, 0, 10.0], [200.0, 0, 10.0]]))
+    tgt = PathTarget(Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0])), path, speed=7.0,
+                     ki_speed=0.0, ki_altitude=0.0, bank_lead_s=lead)
+    p, v, dt = np.array([5.0, 1.0, 10.0]), np.array([7.0, 0, 0]), 0.1
+    tgt.begin(p, v)
+    tgt(CycleEnd(None, np.zeros(8), p + v * dt, np.array([1.0, 0, 0, 0]), v, dt, 0.0))
+    assert tgt.asked[-1][3] == pytest.approx(bank(dt + lead), abs=1e-4)
+    assert bank(0.1) == pytest.approx(np.radians(-26.0), abs=np.radians(0.5))  # toward the path
+    # the heading asked is the curve's direction at the wingbeat's end, and the desired
+    # attitude (Eo) keeps the curve's own bank there: heading, then the pitch by the angle of
+    # attack, then the bank about x
+    _, heading, climb, _ = tgt.asked[-1]
+    h = np.arctan2((6 * dt * dt - 6 * dt) * 1.0, 7.0)
+    assert heading == pytest.approx(h, abs=1e-4) and abs(climb) < 1e-9
+    qh = np.array([np.cos(h / 2), 0, 0, np.sin(h / 2)])
+    qp = np.array([np.cos(-tgt.trim.aoa / 2), 0, np.sin(-tgt.trim.aoa / 2), 0])
+    qb = np.array([np.cos(-bank(dt) / 2), np.sin(-bank(dt) / 2), 0, 0])
+    q, t = np.empty(4), np.empty(4)
+    mujoco.mju_mulQuat(t, qh, qp)
+    mujoco.mju_mulQuat(q, t, qb)
+    assert quat_distance(tgt.desired[-1][1], q) < 1e-4
+
+
+def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
+    from flapsim.bird.controller import Trim
+    from flapsim.bird.path import PathTarget
+
+    path = FlightPath(np.array([[0, 0, 10.0], [20.0, 0, 10.0]]))
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(InputError, match="bank lead"):
+            PathTarget(Trim(np.zeros(8)), path, bank_lead_s=bad)
+    assert main(["eval", "--scenario", "figure8-level", "--bank-lead", "2"]) != 0
+    assert "--bank-lead must be 0..1 s" in capsys.readouterr().err
