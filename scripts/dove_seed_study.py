@@ -63,7 +63,7 @@ def main() -> None:
     a = ap.parse_args()
     cache = Path(a.cache)
     cache.mkdir(exist_ok=True)
-    flight = [n for n in _flight_scenarios()]
+    flight = _flight_scenarios()
     rows, results = [], {}
     for seed in _seeds(a.seeds):
         db = cache / f"seed{seed}.db"
