@@ -29,9 +29,9 @@ from flapsim.sim.loading import load_model
 FEATHERS = ("l_p8", "l_p3", "l_s5", "l_r3")
 
 
-def record(speed: float, pitch_deg: float, cycles: int = 3) -> dict:
+def record(speed: float, pitch_deg: float, cycles: int = 3, integration: str = "engine") -> dict:
     params = DoveParams.load()
-    mp = ModalParams()
+    mp = ModalParams(integration=integration)
     model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg, modal=mp), is_xml=True)
     dove = Dove.from_model(model, params, mp)
     P = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
@@ -117,15 +117,18 @@ def main() -> None:
     ap.add_argument("--speed", type=float, default=7.0, help="headwind, m/s")
     ap.add_argument("--pitch-deg", type=float, default=5.0, help="trunk pitch, deg")
     ap.add_argument("--no-tunnel", action="store_true", help="skip the rigid/modal lift/weight")
+    ap.add_argument("--integration", choices=("engine", "joints"), default="engine",
+                    help="who integrates the modes (ModalParams.integration)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rec = record(args.speed, args.pitch_deg)
-    res = {"speed": args.speed, "pitch_deg": args.pitch_deg, "feathers": summary(rec)}
+    rec = record(args.speed, args.pitch_deg, integration=args.integration)
+    res = {"speed": args.speed, "pitch_deg": args.pitch_deg, "integration": args.integration,
+           "feathers": summary(rec)}
     if not args.no_tunnel:
         params = DoveParams.load()
         P = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
-        for name, modal in (("rigid", None), ("modal", ModalParams())):
+        for name, modal in (("rigid", None), ("modal", ModalParams(integration=args.integration))):
             t = wind_tunnel(params, P, args.speed, args.pitch_deg, modal=modal)
             res[f"{name}_lift_per_weight"] = float(t.lift_per_weight)
             res[f"{name}_thrust_per_weight"] = float(t.thrust_per_weight)

@@ -28,7 +28,7 @@ from mujoco import rollout
 from numba import njit
 
 from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.modal_feathers import FI, modal_kernel
+from flapsim.bird.modal_feathers import FI, modal_engine, modal_kernel
 from flapsim.bird.model import Dove
 from flapsim.bird.wingbeat import control_table, p0, with_tail_bias
 from flapsim.fluid.surfaces import surface_kernel
@@ -38,6 +38,12 @@ from flapsim.fluid.surfaces import surface_kernel
 def _loop_modal(n, w, *args):
     for _ in range(n):
         modal_kernel(w, *args)
+
+
+@njit(cache=False)
+def _loop_engine(n, w, *args):
+    for _ in range(n):
+        modal_engine(w, *args)
 
 
 @njit(cache=False)
@@ -90,14 +96,19 @@ def measure(kind: str, wingbeats: int) -> dict:
     out["trunk_or_rigid_kernel_us"] = 1e6 * _best(lambda: _loop_surface(reps, w, *args)) / reps
     if fl.modal is not None:
         margs = list(fl.modal.arrays(m, d))
-        margs[7] = d.qfrc_passive.copy()
-        _loop_modal(1, w, *margs)
-        out["modal_kernel_us"] = 1e6 * _best(lambda: _loop_modal(reps, w, *margs)) / reps
-        fint = margs[8].copy().reshape(-1, FI)
+        # the engine's kernel (its modes' step and the twist hinges included) or the joints'
+        loop, qf, fi = ((_loop_engine, fl.modal.QFRC_ARG_ENGINE, 5) if fl.modal.engine else
+                        (_loop_modal, 7, 8))
+        margs[qf] = d.qfrc_passive.copy()
+        if fl.modal.engine:
+            margs[-1] = d.userdata.copy()  # repeated calls at one time: the same work each
+        loop(1, w, *margs)
+        out["modal_kernel_us"] = 1e6 * _best(lambda: loop(reps, w, *margs)) / reps
+        fint = margs[fi].copy().reshape(-1, FI)
         fint[:, 8] = 0  # no triangles: the warp and the vertex stage alone
-        margs[8] = fint.ravel()
-        _loop_modal(1, w, *margs)
-        out["modal_warp_stage_us"] = 1e6 * _best(lambda: _loop_modal(reps, w, *margs)) / reps
+        margs[fi] = fint.ravel()
+        loop(1, w, *margs)
+        out["modal_warp_stage_us"] = 1e6 * _best(lambda: loop(reps, w, *margs)) / reps
         out["modal_triangle_stage_us"] = out["modal_kernel_us"] - out["modal_warp_stage_us"]
     # bare: no providers
     fl.close()

@@ -38,7 +38,7 @@ def _measure(dove: Dove, seconds: float) -> dict:
     n_wb = max(2, int(seconds / per_wb))
     res = {}
     for name, rollout in (("rollout", True), ("python_loop", False)):
-        f = fly(dove, n_wb, FlightConfig(), use_rollout=rollout)
+        f = fly(dove, n_wb, FlightConfig(), use_rollout=rollout, keep_qpos=False)
         sim = len(f.time) * dt
         res[name] = {"wingbeats": n_wb, "simulated_s": sim, "wall_s": f.wall_time,
                      "real_time_factor": sim / f.wall_time,

@@ -170,6 +170,30 @@ def _push_controls(m: mujoco.MjModel, ctrl: np.ndarray, push: Push) -> tuple[np.
     return out, int(spec)
 
 
+def _stepped(fl: DoveFlight, ctrl: np.ndarray, push: Push | None, size: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The wingbeat stepped one ``mj_step`` at a time: (the states a rollout would return,
+    the frames :meth:`DoveFlight.frame`). Diverging here raises as the rollout's check does."""
+    m, d = fl.model, fl.data
+    states = np.empty((len(ctrl), size))
+    frames = None
+    try:
+        for k in range(len(ctrl)):
+            d.ctrl[:] = ctrl[k]
+            if push is not None:
+                d.xfrc_applied[push.body, 0:3] = push.force if k < push.steps else 0.0
+            mujoco.mj_step(m, d)
+            mujoco.mj_getState(m, d, states[k], STATE_SPEC)
+            row = fl.frame()
+            if frames is None:
+                frames = np.empty((len(ctrl), len(row)))
+            frames[k] = row
+    finally:
+        if push is not None:
+            d.xfrc_applied[:] = 0.0
+    return states, frames
+
+
 def _controls(fl: DoveFlight, ref: ReferenceWingbeat, p: np.ndarray) -> np.ndarray:
     """The control table of wingbeat ``p``; the last few are kept, since the learned
     controller flies the same reference wingbeat P0 every wingbeat."""
@@ -213,7 +237,10 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
     mujoco.mj_getState(m, d, s0, STATE_SPEC)
     warm = d.qacc_warmstart.copy()
     n = len(ctrl)
-    if push is None:
+    frames = None
+    if record and fl.modes_in_userdata:  # the frames need the modes' state: step one by one
+        states, frames = _stepped(fl, ctrl, push, s0.size)
+    elif push is None:
         states, _ = rollout.rollout(m, d, s0[None], ctrl[None], initial_warmstart=warm[None],
                                     skip_checks=False)
     else:
@@ -221,7 +248,8 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
         states, _ = rollout.rollout(m, d, s0[None], controls[None], control_spec=spec,
                                     initial_warmstart=warm[None], skip_checks=False)
         d.xfrc_applied[:] = 0.0
-    states = states[0]
+    if frames is None:
+        states = states[0]
     if not np.all(np.isfinite(states[-1])):
         raise SimulationError(f"dove simulation diverged within a wingbeat at t={states[-1, 0]:.4f} s "
                               "(non-finite state): the wingbeat or start state is out of reach")
@@ -237,7 +265,7 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
     excess = float(max(0.0, np.max(lo - q), np.max(q - hi)))
     mujoco.mj_subtreeVel(m, d)
     com_vel = d.subtree_linvel[fl.dove.trunk].copy()
-    qpos = states[:, 1:1 + m.nq].copy() if record else None
+    qpos = (states[:, 1:1 + m.nq].copy() if frames is None else frames) if record else None
     return CycleEnd(Snapshot(states[-1].copy(), d.qacc_warmstart.copy(), d.userdata.copy()),
                     reduced_state(d),
                     d.qpos[0:3].copy(), d.qpos[3:7].copy(), com_vel, n * float(m.opt.timestep),

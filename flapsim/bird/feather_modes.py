@@ -82,9 +82,25 @@ class ModalParams:
     grid_per_segment: int = 2
     """Warping integration intervals per mesh segment along the shaft (even: Simpson's rule)."""
     implicit_above: float = 1.0
-    """Modes with omega * timestep above this are integrated implicitly (backward Euler:
-    stable, but numerically damped: the timestep cannot resolve them); the others
-    semi-implicitly (energy-conserving), by MuJoCo."""
+    """Modes with omega * timestep above this get ``k dt`` of extra (numerical) damping: the
+    timestep cannot resolve them, so they are kept quasi-static (with ``integration="joints"``
+    that makes MuJoCo's step backward Euler for them; the others are stepped exactly by the
+    engine, or semi-implicitly by MuJoCo, both without energy drift)."""
+    integration: str = "engine"
+    """Who integrates the modes: ``"engine"`` (default): the force engine, in MuJoCo's
+    ``userdata``, one exact step of each mode's oscillator per simulation step, driven by the
+    aerodynamic and D'Alembert loads, the feather's reaction on its bone being its aerodynamic
+    force (the paper's eq. 9), the primaries' twist hinges outside the skeleton as for rigid
+    feathers; ``"joints"``: each mode a MuJoCo DOF (a point mass on a slide joint), fully
+    coupled to the bone, twist hinges in the skeleton: 1.4x dearer, kept as the reference the
+    engine is checked against (:mod:`flapsim.bird.modal_feathers`)."""
+
+    def __post_init__(self) -> None:
+        if self.integration not in ("engine", "joints"):
+            raise InputError(f"ModalParams.integration must be 'engine' or 'joints', got "
+                             f"{self.integration!r}")
+        if not 1 <= int(self.modes) <= 8:
+            raise InputError(f"ModalParams.modes must be 1..8, got {self.modes}")
 
     def ei(self, kind: str) -> tuple[float, float]:
         if kind == "primary":

@@ -130,7 +130,8 @@ class CycleRecord:
     qpos14: np.ndarray
     """(n, 14) actuated joint angles (tail spread: the tendon), rad."""
     qpos: np.ndarray | None = None
-    """(n, nq) full positions (for videos), when recorded."""
+    """(n, nq) full positions (for videos), when recorded; with engine-integrated modal
+    feathers the frames of :meth:`DoveFlight.frame` (``qpos``, then the modal coordinates)."""
 
 
 @dataclass
@@ -167,9 +168,11 @@ class DoveFlight:
 
             # the deformable feathers are the modal provider's; the trunk stays a polygon set
             self.polygons = body_polygons(self.dove)
+            # engine-integrated modes: the primaries' twist hinges are integrated with them
             self.modal = ModalFeathers(m, dove_feather_modes(self.dove.params, self.dove.modal),
                                        get_table(self.table), AIR_DENSITY, self.flow,
-                                       plucked=self.plucked)
+                                       plucked=self.plucked, hinges=self.dove.twist_hinges(),
+                                       params=self.dove.modal)
         self.aero = SurfaceForces(m, self.polygons,
                                   [get_table(self.table), bluff_body(self.dove.params.body_drag_cd)],
                                   FluidParams(AIR_DENSITY), self.flow, name="dove feathers and body",
@@ -272,26 +275,47 @@ class DoveFlight:
         8 numbers invariant to position and heading (the flight paper's eq. 1)."""
         return reduced_state(self.data)
 
+    # -- frames (what videos and the viewer draw) ------------------------------------------
+    @property
+    def modes_in_userdata(self) -> bool:
+        """True for engine-integrated modal feathers: their state is not in ``qpos``, so
+        :meth:`frame` appends it, and recorded wingbeats are stepped one by one (a
+        ``mujoco.rollout`` returns no ``userdata``)."""
+        return self.modal is not None and self.modal.engine
+
+    def frame(self, d: mujoco.MjData | None = None) -> np.ndarray:
+        """What a video frame or the viewer shows of the state: ``qpos``, then the modal
+        coordinates of engine-integrated feathers (:class:`~flapsim.bird.modal_feathers.
+        FeatherDrawing` takes it apart)."""
+        d = self.data if d is None else d
+        if not self.modes_in_userdata:
+            return d.qpos.copy()
+        return np.concatenate([d.qpos, self.modal.coordinates(d).ravel()])
+
     # -- stepping --------------------------------------------------------------------------
-    def run_cycle(self, p: np.ndarray, record: bool = True) -> CycleRecord | None:
-        """Fly one wingbeat of parameters ``p`` from the current state."""
+    def run_cycle(self, p: np.ndarray, record: bool = True, frames: bool = True) -> CycleRecord | None:
+        """Fly one wingbeat of parameters ``p`` from the current state. ``frames=False``: the
+        record's ``qpos`` is only the last step's frame, so that engine-integrated modal
+        feathers need not be stepped one by one (see :attr:`modes_in_userdata`)."""
         m, d = self.model, self.data
         ctrl, q_t, _ = control_table(self.ref, p, m.opt.timestep, self.kp, self.kv)
         n = len(ctrl)
-        if self.use_rollout:
+        if self.use_rollout and not (record and frames and self.modes_in_userdata):
             pos, quat, q14, t, qpos = self._rollout(ctrl)
+            if not frames:
+                qpos = self.frame()[None]
             return CycleRecord(t, pos, quat, q14, qpos) if record else None
         else:
             pos, quat, q14, t = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 14)),
                                  np.empty(n))
-            qpos = np.empty((n, m.nq))
+            qpos = np.empty((n, len(self.frame()) if record else m.nq))
             for k in range(n):
                 d.ctrl[:] = ctrl[k]
                 mujoco.mj_step(m, d)
                 if record:
                     pos[k], quat[k], t[k] = d.qpos[0:3], d.qpos[3:7], d.time
                     q14[k] = self._q14()
-                    qpos[k] = d.qpos
+                    qpos[k] = self.frame()
         DISPATCHER.check(d)
         self._check_warnings()
         if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
@@ -506,7 +530,7 @@ def fly(dove: Dove, wingbeats: int, cfg: FlightConfig | None = None, p: np.ndarr
             it = tqdm(it, desc="wingbeats", unit="wb")
         t0 = _time.perf_counter()
         for _ in it:
-            rec = fl.run_cycle(p)
+            rec = fl.run_cycle(p, frames=keep_qpos)
             if not keep_qpos and rec.qpos is not None:
                 rec.qpos = rec.qpos[-1:].copy()
             recs.append(rec)

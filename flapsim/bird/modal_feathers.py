@@ -1,37 +1,44 @@
-"""Modal feathers in the simulation: extra MuJoCo DOF per mode, forces from a compiled kernel.
+"""Modal feathers in the simulation: the modes integrated by the force engine (default), or
+as extra MuJoCo DOF (the fully coupled reference).
 
-Mechanism (measured against the alternatives: see the README, "Modal feathers"). Each mode
-of each feather (:mod:`flapsim.bird.feather_modes`) is one slide joint of an otherwise
-weightless body hung from the world: its ``qpos``/``qvel`` are the modal coordinate and
-rate, so snapshots (``mjSTATE_FULLPHYSICS``), ``mujoco.rollout`` and repeated
-``mj_forward`` calls all carry or leave them exactly like any joint. The joint's
-``armature`` is the mode's generalized mass, its ``stiffness`` the modal stiffness and its
-``damping`` the structural damping (implicit in ``implicitfast``). Modes the timestep cannot
-resolve (``omega dt > ModalParams.implicit_above``) also get ``k dt`` of damping: with the
-explicit spring that is exactly backward Euler for them (stable at any frequency; numerically
-damped). Resolved modes are stepped semi-implicitly (symplectic: energy does not drift).
+**Engine-integrated modes** (``ModalParams(integration="engine")``, :func:`modal_engine`), as
+the paper integrates them (sec. 6): the MuJoCo model is the rigid dove's (the primaries' twist
+hinges outside the skeleton, :mod:`flapsim.fluid.hinges`), and each feather's modal
+coordinates and rates live in MuJoCo's ``userdata``, so snapshots that carry ``userdata``
+(:class:`flapsim.bird.cycle.Snapshot`), ``mujoco.rollout`` and repeated ``mj_forward`` calls
+carry or leave them. Every step the kernel, for every feather:
 
-Every step the compiled kernel :func:`modal_kernel`, one more provider on the passive
-dispatcher, for every feather:
+1. builds the deformed feather by modal warping in the feather's frame (its bone's, or for a
+   primary the bone's turned by the twist hinge angle) and the vertex Jacobians;
+2. computes drag and lift on every deformed triangle (the shared plate formula), with the
+   point velocity of the bone, the twist rate and the deformation rate; applies them to the
+   bone (eq. 9), their torque about the twist axis to the hinge, and, spread equally to the
+   triangle's vertices, to the modes (virtual work);
+3. adds the D'Alembert load of the feather frame's rigid motion (James & Pai 2002):
+   ``-Gamma n.(a_o + alpha x c + w x (w x c) - g)`` with ``c = S / Gamma`` the mode's
+   centre, plus the deflection's own centrifugal load; the frame's accelerations are finite
+   differences of its velocities over the last step (kept in ``userdata``, as the twist
+   hinges do);
+4. steps each mode's oscillator ``mu q'' + c q' + k q = Q`` exactly over the step (the matrix
+   exponential, :func:`mode_transitions`): stable at any frequency, no energy drift without
+   damping.
 
-1. builds the deformed feather by modal warping (each shaft section rotated by the modes'
-   slope and twist, the centreline integrated: a bent feather keeps its length), and the
-   Jacobian of each vertex with respect to each modal coordinate (once per shaft station,
-   :func:`_stations`, then per vertex; the kernel is compiled separately for the default
-   one mode per feather);
-2. computes drag and lift on every *deformed* triangle with the shared surface-force
-   formula (:func:`flapsim.fluid.surfaces.plate_force`), with the point velocity of the bone
-   plus the deformation rate, and applies it to the bone at the deformed centroid (the paper's
-   eq. 9) and, spread equally to the triangle's three vertices, to the modes (virtual work);
-3. adds the D'Alembert load of the bone's acceleration (and gravity) on the modes; the
-   bone's acceleration is the previous step's (``qacc_warmstart``, which MuJoCo keeps and
-   the snapshots carry): a one-step lag;
-4. applies the deforming feather's inertial reaction back onto its bone: the modes'
-   relative acceleration ``(Q - k q - c qdot) / (mu + c dt)`` (MuJoCo's own implicit
-   update) times their ``Gamma``/``S`` (the feather's rigid inertia is already in the bone).
+The feather's reaction on its bone is its aerodynamic force (eq. 9): its rigid mass rides the
+bone, the vibrating part does not push back, as in the paper. The cost over rigid feathers is
+the kernel's alone: no MuJoCo DOF, no bigger factorization.
 
-Twist of the primaries stays on their MuJoCo hinges (spring, damper, one-sided range), as in
-the rigid model; the modes hang on the twisted feather.
+**Modes on joints** (``integration="joints"``, :func:`modal_kernel`): each mode of each
+feather (:mod:`flapsim.bird.feather_modes`) is one slide joint of a point-mass body on its
+bone: its ``qpos``/``qvel`` are the modal coordinate and rate, the joint's ``stiffness`` the
+modal stiffness and its ``damping`` the structural damping (implicit in ``implicitfast``).
+Modes the timestep cannot resolve (``omega dt > ModalParams.implicit_above``) also get
+``k dt`` of damping: with the explicit spring that is backward Euler for them. MuJoCo then
+carries the D'Alembert load, gravity and the deforming feather's inertial reaction back onto
+the bone (fully coupled); the kernel puts drag and lift on the deformed triangles and spreads
+them to the bone and the modes. The twist of the primaries stays on their MuJoCo hinges in the
+skeleton (spring, damper, one-sided range). It costs ~1.8x a rigid step (the modes' bodies
+and DOF); it is kept as the reference the engine is checked against
+(``tests/bird/test_modal_feathers.py``: the tip deflection in flight).
 """
 
 from __future__ import annotations
@@ -50,10 +57,11 @@ from flapsim.bird.feather_modes import FeatherModes, ModalParams, feather_modes
 from flapsim.errors import InputError, ModelError
 from flapsim.fluid.coefficients import CoefficientTable
 from flapsim.fluid.flow import FlowField, flow_at
+from flapsim.fluid.hinges import HF, HI, HS, PolygonHinges, bone_accelerations, hinge_frames, hinge_torque
 from flapsim.fluid.surfaces import plate_force, pseudo_angle_tables
 from flapsim.sim.callbacks import CompiledProvider, Registration, register, register_kernel, time_view
 
-FI = 10  # ints per feather
+FI = 11  # ints per feather (see ModalFeathers.__init__)
 REC = 16  # floats recorded per triangle (force 3, point 3, normal 3, area 1, spare)
 
 
@@ -167,14 +175,19 @@ def twist_armature(fm: FeatherModes, axis: np.ndarray) -> float:
 def clamped_feather_xml(fm: FeatherModes, mp: ModalParams, timestep: float,
                         gravity: bool = False, free_bone: bool = False) -> str:
     """One feather clamped at its root to a bone (named after ``fm.body``; fixed, or on a free
-    joint), its modes as in the dove (:func:`modal_xml`): the unit model of the tests."""
+    joint), its modes as in the dove: the unit model of the tests. ``mp.integration``:
+    ``"engine"``, room in ``userdata`` for the engine's modes (:func:`modal_engine`);
+    ``"joints"``, the modes' bodies and slide joints (:func:`modal_xml`)."""
     joint = '<freejoint name="bone"/>' if free_bone else ""
-    xml = (f'<mujoco><option timestep="{timestep:.10g}" integrator="implicitfast" '
+    size = (f'<size nuserdata="{engine_userdata_size(1, fm.omega.size)}"/>'
+            if mp.integration == "engine" else "")
+    xml = (f'<mujoco>{size}<option timestep="{timestep:.10g}" integrator="implicitfast" '
            f'gravity="0 0 {-9.81 if gravity else 0.0}"/>'
            f'<worldbody><body name="{fm.body}" pos="0 0 1">{joint}'
            '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>')
     root = ET.fromstring(xml)
-    _add_mode_bodies(root.find("worldbody/body"), fm, mp, timestep)
+    if mp.integration == "joints":
+        _add_mode_bodies(root.find("worldbody/body"), fm, mp, timestep)
     return ET.tostring(root, encoding="unicode")
 
 
@@ -359,18 +372,24 @@ def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, 
     (world position 3, deformation velocity 3, Jacobian 3 K: all in the world frame)
     from ``fluid[3]``, the modes' (Q, q, qdot) from ``fluid[4]``."""
     K = int(fluid[2])
+    none = np.zeros(0)  # no twist hinges: the modes ride their bones (or in-tree hinges)
     if K == 1:  # the dove's default: compiled with the loops over the modes unrolled
         return _modal_forces(1, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff,
                              grid, vst, vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow,
-                             rec)
+                             rec, none, none)
     return _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, grid,
-                         vst, vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec)
+                         vst, vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec, none,
+                         none)
 
 
 @njit(cache=True, inline="always", fastmath=FASTMATH)
 def _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, grid, vst,
-                  vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec):
-    """:func:`modal_kernel` for K modes per feather."""
+                  vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec, hflt, hs):
+    """:func:`modal_kernel` for K modes per feather. A feather whose hinge index
+    ``fint[FI f + 10]`` is >= 0 rides that twist hinge (:mod:`flapsim.fluid.hinges`: ``hflt``
+    and the frames ``hs`` of :func:`~flapsim.fluid.hinges.hinge_frames`): its frame is the
+    twisted plate's, its points move with the twist rate too, and the forces' torque about the
+    hinge axis is added to ``hs`` for :func:`~flapsim.fluid.hinges.hinge_torque`."""
     rho = fluid[0]
     eta = fluid[1]
     vo = int(fluid[3])
@@ -398,11 +417,27 @@ def _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, 
             scratch[qo + K + k] = qpos[qa + k]
             scratch[qo + 2 * K + k] = qvel[da + k]
         _stations(K, ff, fo, grid, go, nst, sub, scratch, qo + K, scratch, 0)
-        m = 9 * b
-        R00, R01, R02 = xmat[m], xmat[m + 1], xmat[m + 2]
-        R10, R11, R12 = xmat[m + 3], xmat[m + 4], xmat[m + 5]
-        R20, R21, R22 = xmat[m + 6], xmat[m + 7], xmat[m + 8]
-        ox, oy, oz = xpos[3 * b], xpos[3 * b + 1], xpos[3 * b + 2]
+        hh = fint[FI * f + 10]
+        # the hinge's twist rate (world vector) and a point of its axis: zero off a hinge
+        ewx = ewy = ewz = 0.0
+        hox = hoy = hoz = 0.0
+        if hh >= 0:  # the twisted plate's frame: x_world = o_h + R (x_body - o_body)
+            so = HS * hh
+            R00, R01, R02 = hs[so + 7], hs[so + 8], hs[so + 9]
+            R10, R11, R12 = hs[so + 10], hs[so + 11], hs[so + 12]
+            R20, R21, R22 = hs[so + 13], hs[so + 14], hs[so + 15]
+            hox, hoy, hoz = hs[so + 4], hs[so + 5], hs[so + 6]
+            lo0, lo1, lo2 = hflt[HF * hh + 3], hflt[HF * hh + 4], hflt[HF * hh + 5]
+            ox = hox - (R00 * lo0 + R01 * lo1 + R02 * lo2)
+            oy = hoy - (R10 * lo0 + R11 * lo1 + R12 * lo2)
+            oz = hoz - (R20 * lo0 + R21 * lo1 + R22 * lo2)
+            ewx, ewy, ewz = hs[so] * hs[so + 1], hs[so] * hs[so + 2], hs[so] * hs[so + 3]
+        else:
+            m = 9 * b
+            R00, R01, R02 = xmat[m], xmat[m + 1], xmat[m + 2]
+            R10, R11, R12 = xmat[m + 3], xmat[m + 4], xmat[m + 5]
+            R20, R21, R22 = xmat[m + 6], xmat[m + 7], xmat[m + 8]
+            ox, oy, oz = xpos[3 * b], xpos[3 * b + 1], xpos[3 * b + 2]
         r = rootid[b]
         c0, c1, c2 = scom[3 * r], scom[3 * r + 1], scom[3 * r + 2]
         wx, wy, wz = cvel[6 * b], cvel[6 * b + 1], cvel[6 * b + 2]
@@ -504,6 +539,11 @@ def _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, 
             vx_ = ux - (lx + wy * dz - wz * dy + uw0)
             vy_ = uy - (ly + wz * dx - wx * dz + uw1)
             vz_ = uz - (lz + wx * dy - wy * dx + uw2)
+            if hh >= 0:  # the plate's turning about its hinge
+                hx, hy, hz = px - hox, py - hoy, pz - hoz
+                vx_ -= ewy * hz - ewz * hy
+                vy_ -= ewz * hx - ewx * hz
+                vz_ -= ewx * hy - ewy * hx
             vn = vx_ * nx + vy_ * ny + vz_ * nz
             sx = ny * fz - nz * fy
             sy = nz * fx - nx * fz
@@ -522,6 +562,11 @@ def _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, 
             Fsx += Fx
             Fsy += Fy
             Fsz += Fz
+            if hh >= 0:  # the force's torque about the hinge axis
+                hx, hy, hz = px - hox, py - hoy, pz - hoz
+                so = HS * hh
+                hs[so + 16] += (hs[so + 1] * (hy * Fz - hz * Fy) + hs[so + 2] * (hz * Fx - hx * Fz)
+                                + hs[so + 3] * (hx * Fy - hy * Fx))
             # to the modes: F/3 at each vertex, through each vertex's Jacobian
             for k in range(K):
                 k3 = 6 + 3 * k
@@ -562,6 +607,189 @@ def _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, 
 SIGNATURE = "ffffi" + "fff" + "iff" + "if" + "i" + "ff" + "fffff" + "f"
 register_kernel("modal_feathers", modal_kernel, SIGNATURE)
 
+# userdata of the engine-integrated modes, after the twist hinges' own (ENGINE_* offsets from
+# the block's start): the times of the last two calls, then per mode its coordinate and rate
+# at the current time (A) and at the next step (B), then per feather the velocity of its
+# frame's origin and its frame's angular velocity at the previous and the current time
+MODE_SLOTS = 4
+FRAME_SLOTS = 12
+TRANS = 6  # per mode: the step's transition (q' = a q + b v + e Q, v' = c q + d v + f Q)
+
+
+def engine_userdata_size(n_feathers: int, K: int) -> int:
+    """``userdata`` entries the engine-integrated modes of ``n_feathers`` feathers use."""
+    return 2 + MODE_SLOTS * K * n_feathers + FRAME_SLOTS * n_feathers
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def modal_engine(w, xpos, xmat, cvel, scom, rootid, fint, ff, grid, vst, vx, tri, scratch, ext,
+                 cl_tab, cd_tab, flow, fluid, tnow, rec, qbuf, vbuf, Qbuf, trans, hint, hflt, hs,
+                 qpos, qvel, qacc, qfrc, qfrc_applied, M, damping, parent, dofadr, dofnum, cdof,
+                 cdof_dot, cacc, opt, ud):
+    """The modes integrated by the force engine itself (no MuJoCo DOF): every step, per
+    feather, the aerodynamic forces on the deformed triangles (to the bone, eq. 9, to the twist
+    hinge and to the modes: :func:`_modal_forces`), the D'Alembert load of the feather frame's
+    rigid motion on each mode (James & Pai 2002; the flight paper, sec. 6), and one exact step
+    of each mode's damped oscillator under that load (``trans``: the matrix exponential,
+    stable at any frequency, energy-exact without damping). The feather's reaction on its bone
+    is the aerodynamic force alone, as in the paper (eq. 9): the vibrating part of its mass
+    does not push back (its rigid mass rides the bone).
+
+    ``fluid`` = (density, friction, K, vertex work offset, mode work offset, userdata offset
+    of this block); the state lives in ``ud`` (:data:`MODE_SLOTS`, :data:`FRAME_SLOTS`): a
+    call at the time of the last call recomputes the next state from the same current one (so
+    repeated ``mj_forward`` calls change nothing), a call one step later first makes the next
+    state current, any other time (a reset, a jump) keeps the current state and has no frame
+    velocities to difference: the bones' explicit accelerations (``qacc_warmstart``) stand in
+    once. The hinges (``hint``...) get their torques as in the surface kernel.
+    """
+    t = tnow[0]
+    dt = opt[0]
+    gx, gy, gz = opt[1], opt[2], opt[3]
+    K = int(fluid[2])
+    mo = int(fluid[5])
+    nfe = fint.size // FI
+    nm = K * nfe
+    sa = mo + 2
+    fr = sa + MODE_SLOTS * nm
+    tol = 0.25 * dt
+    if abs(t - ud[mo + 1] - dt) < tol:  # one step on: the next state is the current one
+        ud[mo] = ud[mo + 1]
+        for i in range(nm):
+            ud[sa + 4 * i] = ud[sa + 4 * i + 2]
+            ud[sa + 4 * i + 1] = ud[sa + 4 * i + 3]
+        for f in range(nfe):
+            for k in range(6):
+                ud[fr + 12 * f + k] = ud[fr + 12 * f + 6 + k]
+    elif abs(t - ud[mo + 1]) >= tol:
+        ud[mo] = np.nan
+    ud[mo + 1] = t
+    diff = abs(ud[mo] - (t - dt)) < tol
+    for i in range(nm):
+        qbuf[i] = ud[sa + 4 * i]
+        vbuf[i] = ud[sa + 4 * i + 1]
+        Qbuf[i] = 0.0
+    nh = hint.size // HI
+    if nh > 0:
+        hinge_frames(xpos, xmat, qpos, qvel, hint, hflt, hs)
+    if K == 1:
+        st = _modal_forces(1, w, xpos, xmat, cvel, scom, rootid, qbuf, vbuf, Qbuf, fint, ff, grid,
+                           vst, vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec, hflt,
+                           hs)
+    else:
+        st = _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qbuf, vbuf, Qbuf, fint, ff, grid,
+                           vst, vx, tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec, hflt,
+                           hs)
+    if st != 0:
+        return st
+    if not diff:
+        bone_accelerations(parent, dofadr, dofnum, cdof, cdof_dot, qvel, qacc, cacc)
+    FF = 13 + 4 * K
+    for f in range(nfe):
+        b = fint[FI * f]
+        hh = fint[FI * f + 10]
+        fo = FF * f
+        wx, wy, wz = cvel[6 * b], cvel[6 * b + 1], cvel[6 * b + 2]
+        lo0 = lo1 = lo2 = 0.0
+        if hh >= 0:  # the twisted plate: origin on the hinge axis, turning with the twist too
+            so = HS * hh
+            R00, R01, R02 = hs[so + 7], hs[so + 8], hs[so + 9]
+            R10, R11, R12 = hs[so + 10], hs[so + 11], hs[so + 12]
+            R20, R21, R22 = hs[so + 13], hs[so + 14], hs[so + 15]
+            ox, oy, oz = hs[so + 4], hs[so + 5], hs[so + 6]
+            lo0, lo1, lo2 = hflt[HF * hh + 3], hflt[HF * hh + 4], hflt[HF * hh + 5]
+            pwx = wx + hs[so] * hs[so + 1]
+            pwy = wy + hs[so] * hs[so + 2]
+            pwz = wz + hs[so] * hs[so + 3]
+        else:
+            m = 9 * b
+            R00, R01, R02 = xmat[m], xmat[m + 1], xmat[m + 2]
+            R10, R11, R12 = xmat[m + 3], xmat[m + 4], xmat[m + 5]
+            R20, R21, R22 = xmat[m + 6], xmat[m + 7], xmat[m + 8]
+            ox, oy, oz = xpos[3 * b], xpos[3 * b + 1], xpos[3 * b + 2]
+            pwx, pwy, pwz = wx, wy, wz
+        r = rootid[b]
+        dx, dy, dz = ox - scom[3 * r], oy - scom[3 * r + 1], oz - scom[3 * r + 2]
+        vox = cvel[6 * b + 3] + wy * dz - wz * dy
+        voy = cvel[6 * b + 4] + wz * dx - wx * dz
+        voz = cvel[6 * b + 5] + wx * dy - wy * dx
+        u = fr + 12 * f
+        if diff:  # what the integrator did over the last step
+            aox = (vox - ud[u]) / dt - gx
+            aoy = (voy - ud[u + 1]) / dt - gy
+            aoz = (voz - ud[u + 2]) / dt - gz
+            alx = (pwx - ud[u + 3]) / dt
+            aly = (pwy - ud[u + 4]) / dt
+            alz = (pwz - ud[u + 5]) / dt
+        else:  # the bone's explicit acceleration (the twist's own left out, once)
+            alx, aly, alz = cacc[6 * b], cacc[6 * b + 1], cacc[6 * b + 2]
+            aox = cacc[6 * b + 3] + aly * dz - alz * dy + wy * voz - wz * voy - gx
+            aoy = cacc[6 * b + 4] + alz * dx - alx * dz + wz * vox - wx * voz - gy
+            aoz = cacc[6 * b + 5] + alx * dy - aly * dx + wx * voy - wy * vox - gz
+        ud[u + 6] = vox
+        ud[u + 7] = voy
+        ud[u + 8] = voz
+        ud[u + 9] = pwx
+        ud[u + 10] = pwy
+        ud[u + 11] = pwz
+        n0, n1, n2 = ff[fo + 9], ff[fo + 10], ff[fo + 11]
+        nwx = R00 * n0 + R01 * n1 + R02 * n2
+        nwy = R10 * n0 + R11 * n1 + R12 * n2
+        nwz = R20 * n0 + R21 * n1 + R22 * n2
+        wn = pwx * nwx + pwy * nwy + pwz * nwz
+        # the deflection's own centrifugal load per unit coordinate: n . (w x (w x n))
+        cf = pwx * pwx + pwy * pwy + pwz * pwz - wn * wn
+        for k in range(K):
+            i = K * f + k
+            g = ff[fo + 13 + k]
+            c0 = ff[fo + 13 + K + 3 * k] / g - lo0
+            c1 = ff[fo + 14 + K + 3 * k] / g - lo1
+            c2 = ff[fo + 15 + K + 3 * k] / g - lo2
+            rx = R00 * c0 + R01 * c1 + R02 * c2
+            ry = R10 * c0 + R11 * c1 + R12 * c2
+            rz = R20 * c0 + R21 * c1 + R22 * c2
+            # the rigid acceleration at the mode's centre: a_o + alpha x r + w x (w x r)
+            qx = pwy * rz - pwz * ry
+            qy = pwz * rx - pwx * rz
+            qz = pwx * ry - pwy * rx
+            acx = aox + aly * rz - alz * ry + pwy * qz - pwz * qy
+            acy = aoy + alz * rx - alx * rz + pwz * qx - pwx * qz
+            acz = aoz + alx * ry - aly * rx + pwx * qy - pwy * qx
+            q = qbuf[i]
+            v = vbuf[i]
+            Q = Qbuf[i] - g * (nwx * acx + nwy * acy + nwz * acz) + g * cf * q
+            if not np.isfinite(Q):
+                return 1
+            o = TRANS * i
+            ud[sa + 4 * i + 2] = trans[o] * q + trans[o + 1] * v + trans[o + 4] * Q
+            ud[sa + 4 * i + 3] = trans[o + 2] * q + trans[o + 3] * v + trans[o + 5] * Q
+    if nh > 0:
+        hinge_torque(hint, hflt, hs, cvel, cacc, scom, rootid, qpos, qvel, qfrc, qfrc_applied, M,
+                     damping, opt, t, ud, parent, dofadr, dofnum, cdof, cdof_dot, qacc)
+    return 0
+
+
+ENGINE_SIGNATURE = ("ffffi" + "iffifif" + "ffff" + "fff" + "ffff" + "iff" + "fffffff" + "iii"
+                    + "fffff")
+register_kernel("modal_engine", modal_engine, ENGINE_SIGNATURE)
+
+
+def mode_transitions(fm: FeatherModes, mp: ModalParams, dt: float) -> np.ndarray:
+    """(K, 6) each mode's exact step over ``dt`` under a load ``Q`` held over the step:
+    ``(q', v') = (a q + b v + e Q, c q + d v + f Q)``, the exponential of
+    ``mu q'' + c q' + k q = Q`` (stiffness, damping and ``mu`` of :func:`mode_joint_gains`:
+    the unresolved modes keep their ``k dt`` of damping, so they stay quasi-static)."""
+    import scipy.linalg
+
+    k, c = mode_joint_gains(fm, mp, dt)
+    out = np.zeros((len(k), TRANS))
+    for j in range(len(k)):
+        mu = fm.mu[j]
+        A = np.array([[0.0, 1.0, 0.0], [-k[j] / mu, -c[j] / mu, 1.0 / mu], [0.0, 0.0, 0.0]])
+        E = scipy.linalg.expm(A * dt)
+        out[j] = (E[0, 0], E[0, 1], E[1, 0], E[1, 1], E[0, 2], E[1, 2])
+    return out
+
 
 @dataclass
 class ModalReport:
@@ -579,6 +807,8 @@ class ModalReport:
     """(n,) angle of attack, rad."""
     vertices: np.ndarray
     """(nvert, 3) deformed mesh vertices (world), in :attr:`ModalFeathers.modes` order."""
+    generalized: np.ndarray
+    """(n_feathers, K) the aerodynamic (and external) generalized force on each mode, N."""
 
 
 class ModalFeathers(CompiledProvider):
@@ -588,9 +818,14 @@ class ModalFeathers(CompiledProvider):
 
     def __init__(self, model: mujoco.MjModel, modes: Sequence[FeatherModes], table: CoefficientTable,
                  density: float, flow: FlowField | None = None, name: str = "modal feathers",
-                 plucked: tuple[str, ...] = ()):
-        """``modes``: mass-scaled modes (:func:`dove_feather_modes`) of feathers whose mode
-        joints ``<name>_mode<k>`` the model has (:func:`modal_xml`)."""
+                 plucked: tuple[str, ...] = (), hinges: PolygonHinges | None = None,
+                 params: ModalParams | None = None):
+        """``modes``: mass-scaled modes (:func:`dove_feather_modes`). Two mechanisms, told
+        apart by the model: when it has the mode joints ``<name>_mode<k>``
+        (:func:`modal_xml`, ``ModalParams(integration="joints")``) the modes are MuJoCo DOF;
+        otherwise the engine integrates them in ``userdata`` (:func:`modal_engine`; the
+        default), with the damping and step of ``params``, and the primaries ride their
+        ``hinges`` (:meth:`~flapsim.bird.model.Dove.twist_hinges`, integrated here too)."""
         self.model = model
         self.name = name
         self.flow = flow or FlowField()
@@ -598,24 +833,40 @@ class ModalFeathers(CompiledProvider):
             raise InputError("modal feathers need compiled flow fields (no PythonField)")
         self.modes = tuple(modes)
         self.K = K = self.modes[0].omega.size
+        self.engine = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT,
+                                        f"{self.modes[0].name}_mode1") < 0
+        if self.engine:
+            self.kernel = "modal_engine"
+        elif hinges is not None and len(hinges):
+            raise InputError("modal feathers on mode joints keep their twist hinges in the skeleton")
+        hinge_of = {lab: h for h, lab in enumerate(hinges.label)} if hinges is not None else {}
         fint, ff, grid, vst, vxs, tris = [], [], [], [], [], []
         voff = toff = goff = 0
         self.vert_offset = []
-        for fm in self.modes:
+        for f, fm in enumerate(self.modes):
             b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, fm.body)
-            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{fm.name}_mode1")
-            if b < 0 or j < 0:
-                raise InputError(f"model lacks feather body {fm.body} or mode joint {fm.name}_mode1 "
-                                 "(build it with feathers='modal')")
-            for k in range(1, K):
-                jk = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{fm.name}_mode{k + 1}")
-                if model.jnt_dofadr[jk] != model.jnt_dofadr[j] + k:
-                    raise InputError(f"feather {fm.name}: its mode joints are not consecutive DOF")
+            if b < 0:
+                raise InputError(f"model lacks feather body {fm.body}")
+            h = hinge_of.get(fm.name, -1)
+            if h >= 0 and hinges.body[h] != fm.body:
+                raise InputError(f"feather {fm.name}: its hinge rides {hinges.body[h]!r}, not {fm.body!r}")
+            if self.engine:
+                qa = da = K * f
+            else:
+                j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{fm.name}_mode1")
+                if j < 0:
+                    raise InputError(f"model lacks the mode joint {fm.name}_mode1 (build it with "
+                                     "ModalParams(integration='joints'))")
+                for k in range(1, K):
+                    jk = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{fm.name}_mode{k + 1}")
+                    if model.jnt_dofadr[jk] != model.jnt_dofadr[j] + k:
+                        raise InputError(f"feather {fm.name}: its mode joints are not consecutive DOF")
+                qa, da = model.jnt_qposadr[j], model.jnt_dofadr[j]
             nv, nt = len(fm.vert_x), len(fm.faces)
             ng = fm.slope.shape[0]
             # a plucked feather keeps its modes (driven by inertia alone) but no force polygons
-            fint.append([b, model.jnt_qposadr[j], model.jnt_dofadr[j], fm.stations, fm.sub, voff,
-                         nv, toff, 0 if fm.name in plucked else nt, goff])
+            fint.append([b, qa, da, fm.stations, fm.sub, voff, nv, toff,
+                         0 if fm.name in plucked else nt, goff, h])
             ff.append(np.concatenate([fm.root, fm.shaft, fm.chord, fm.normal, [fm.length],
                                       fm.gamma, fm.first_moment.ravel()]))
             grid.append(np.stack([fm.slope, fm.twist], axis=-1).ravel())
@@ -646,18 +897,56 @@ class ModalFeathers(CompiledProvider):
         self._scratch = np.zeros(qo + 3 * K)
         cl, cd = pseudo_angle_tables(table)
         self._cl, self._cd = cl, cd
-        self._fluid = np.array([density, 0.0, K, vo, qo], dtype=float)
+        self.userdata_offset = 0
+        """Where the engine's modal state starts in ``userdata`` (after the hinges' own)."""
+        none_i, none_f = np.zeros(0, dtype=np.int64), np.zeros(0)
+        self._hint, self._hflt = none_i, none_f
+        if self.engine:
+            from flapsim.fluid.hinges import integrator_damping, userdata_size
+
+            if hinges is not None and len(hinges):
+                _, self._hint, self._hflt = hinges.tables(model, [], np.zeros(0, dtype=np.int64))
+                self.userdata_offset = userdata_size(len(hinges))
+            need = self.userdata_offset + engine_userdata_size(len(self.modes), K)
+            if model.nuserdata < need:
+                raise ModelError(f"{len(self.modes)} engine-integrated feathers keep their modes in "
+                                 f'userdata: the model needs <size nuserdata="{need}"/> or more '
+                                 "(build it with Dove.load(feathers='modal'))")
+            integrator_damping(model)  # RK4 is refused here, not at the first step
+            mp = params or ModalParams()
+            self._trans = f64([mode_transitions(fm, mp, model.opt.timestep).ravel() for fm in self.modes])
+        self._fluid = np.array([density, 0.0, K, vo, qo, self.userdata_offset], dtype=float)
         self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)
         self._no_record = np.zeros(1)
         self.qadr = self._fint.reshape(-1, FI)[:, 1].copy()
         self.dadr = self._fint.reshape(-1, FI)[:, 2].copy()
 
+    QFRC_ARG_ENGINE = 29
+    """Index of ``qfrc_passive`` in the engine kernel's arrays (:meth:`arrays`)."""
+
     def arrays(self, model, data, record: np.ndarray | None = None):
+        rec = self._no_record if record is None else record
+        if not self.engine:
+            return [data.xpos.reshape(-1), data.xmat.reshape(-1), data.cvel.reshape(-1),
+                    data.subtree_com.reshape(-1), self._rootid, data.qpos, data.qvel,
+                    data.qfrc_passive, self._fint, self._ff, self._grid, self._vst, self._vx,
+                    self._tri, self._scratch, self.ext, self._cl, self._cd, self.flow.params,
+                    self._fluid, time_view(data), rec]
+        from flapsim.fluid.hinges import integrator_damping
+
+        nm = self.K * len(self.modes)
+        i64 = [np.ascontiguousarray(a, dtype=np.int64)
+               for a in (model.body_parentid, model.body_dofadr, model.body_dofnum)]
+        opt = np.array([model.opt.timestep, *model.opt.gravity, integrator_damping(model)])
         return [data.xpos.reshape(-1), data.xmat.reshape(-1), data.cvel.reshape(-1),
-                data.subtree_com.reshape(-1), self._rootid, data.qpos, data.qvel,
-                data.qfrc_passive, self._fint, self._ff, self._grid, self._vst, self._vx,
-                self._tri, self._scratch, self.ext, self._cl, self._cd, self.flow.params,
-                self._fluid, time_view(data), self._no_record if record is None else record]
+                data.subtree_com.reshape(-1), self._rootid, self._fint, self._ff, self._grid,
+                self._vst, self._vx, self._tri, self._scratch, self.ext, self._cl, self._cd,
+                self.flow.params, self._fluid, time_view(data), rec, np.zeros(nm), np.zeros(nm),
+                np.zeros(nm), self._trans, self._hint, self._hflt,
+                np.zeros(self._hint.size // HI * HS), data.qpos, data.qvel, data.qacc_warmstart,
+                data.qfrc_passive, data.qfrc_applied, data.M, model.dof_damping, *i64,
+                data.cdof.reshape(-1), data.cdof_dot.reshape(-1), np.zeros(6 * model.nbody), opt,
+                data.userdata]
 
     def register(self, data: mujoco.MjData) -> Registration:
         return register(self.model, data, self)
@@ -668,16 +957,54 @@ class ModalFeathers(CompiledProvider):
         rec = np.zeros(REC * self.ntri + 3 * self.nvert)
         w = np.zeros(6 * self.model.nbody)
         arrays = self.arrays(self.model, data, record=rec)
-        arrays[7] = data.qfrc_passive.copy()  # a scratch qfrc: leave the data's alone
-        modal_kernel(w, *arrays)
+        if self.engine:  # scratch torques and state memory: leave the data's alone
+            arrays[self.QFRC_ARG_ENGINE] = data.qfrc_passive.copy()
+            arrays[-1] = data.userdata.copy()
+            if modal_engine(w, *arrays) != 0:
+                raise InputError("modal feathers: non-finite force (a diverged state?)")
+            Q = arrays[21].reshape(len(self.modes), self.K).copy()
+        else:
+            arrays[7] = qfrc = np.zeros_like(data.qfrc_passive)  # leave the data's alone
+            modal_kernel(w, *arrays)
+            Q = np.array([qfrc[a:a + self.K] for a in self.dadr])
         r = rec[:REC * self.ntri].reshape(-1, REC)
         return ModalReport(r[:, 0:3].copy(), r[:, 3:6].copy(), r[:, 6:9].copy(), r[:, 9].copy(),
-                           r[:, 10].copy(), rec[REC * self.ntri:].reshape(-1, 3).copy())
+                           r[:, 10].copy(), rec[REC * self.ntri:].reshape(-1, 3).copy(), Q)
 
     def coordinates(self, data: mujoco.MjData) -> np.ndarray:
-        """(n_feathers, K) modal coordinates."""
+        """(n_feathers, K) modal coordinates at ``data.time``."""
+        return self.state(data)[0]
+
+    def state(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """(coordinates, rates), each (n_feathers, K), at ``data.time``."""
         K = self.K
-        return np.array([data.qpos[a:a + K] for a in self.qadr])
+        if not self.engine:
+            return (np.array([data.qpos[a:a + K] for a in self.qadr]),
+                    np.array([data.qvel[a:a + K] for a in self.dadr]))
+        ud, mo = data.userdata, self.userdata_offset
+        # after mj_step and before the next call, the state at data.time is the next one (B)
+        nxt = abs(data.time - ud[mo + 1] - self.model.opt.timestep) < 0.25 * self.model.opt.timestep
+        st = ud[mo + 2:mo + 2 + MODE_SLOTS * K * len(self.modes)].reshape(-1, MODE_SLOTS)
+        j = 2 if nxt else 0
+        return (st[:, j].reshape(len(self.modes), K).copy(),
+                st[:, j + 1].reshape(len(self.modes), K).copy())
+
+    def set_coordinates(self, data: mujoco.MjData, q: np.ndarray, qdot: np.ndarray | None = None
+                        ) -> None:
+        """Put the feathers at coordinates ``q`` (n_feathers, K) and rates ``qdot`` (zero by
+        default) at ``data.time`` (engine-integrated modes; joints: ``qpos``/``qvel``)."""
+        q = np.asarray(q, float).reshape(len(self.modes), self.K)
+        qd = np.zeros_like(q) if qdot is None else np.asarray(qdot, float).reshape(q.shape)
+        if not self.engine:
+            for i, a in enumerate(self.qadr):
+                data.qpos[a:a + self.K] = q[i]
+                data.qvel[self.dadr[i]:self.dadr[i] + self.K] = qd[i]
+            return
+        ud, mo = data.userdata, self.userdata_offset
+        ud[mo + 1] = data.time
+        st = ud[mo + 2:mo + 2 + MODE_SLOTS * q.size].reshape(-1, MODE_SLOTS)
+        st[:, 0], st[:, 1] = q.ravel(), qd.ravel()
+        st[:, 2], st[:, 3] = q.ravel(), qd.ravel()
 
     def warped(self, q: np.ndarray, feather: int) -> tuple[np.ndarray, np.ndarray]:
         """Feather ``feather`` deformed by coordinates ``q`` (K,), in its body frame: its
@@ -708,7 +1035,7 @@ class ModalFeathers(CompiledProvider):
         """(deflection along the rest normal, m; elastic twist, rad) of the shaft tip of
         feather ``feather``: bending and twisting relative to its bone (or twist hinge)."""
         fm = self.modes[feather]
-        q = data.qpos[self.qadr[feather]:self.qadr[feather] + self.K]
+        q = self.coordinates(data)[feather]
         v = self.body_vertices(q, feather)
         tip = np.flatnonzero(fm.vert_station == fm.stations - 1)
         a, b = tip[0], tip[1]
@@ -730,15 +1057,20 @@ class FeatherDrawing:
     those each frame. Why flexes: bent *meshes* must be re-uploaded to the GL context per
     frame, one ``mjr_uploadMesh`` per mesh; the passive viewer does that one mesh per render
     loop pass (~70 ms each under Xvfb: 8 s a frame for the dove's 112 feather meshes), a
-    flex costs nothing to upload. The flex collides with nothing (contype = conaffinity = 0)
-    and adds no mass or DOF: the display model has the physics model's ``qpos`` layout, so
-    a physics state is drawn by copying its ``qpos``. The dove's own model is untouched.
+    flex costs nothing to upload. The flex collides with nothing (contype = conaffinity = 0).
+
+    What is drawn is a *frame* of the flight (:meth:`~flapsim.bird.flight.DoveFlight.frame`):
+    its ``qpos``, then (engine-integrated modes) the modal coordinates. ``frame[ix]`` is the
+    display model's ``qpos``: for engine-integrated modes the dove with its twist hinges in
+    the primaries' bodies (drawn twisted) plus one display-only slide joint per mode that
+    holds its coordinate; for modes on joints the modal dove's own layout. The dove's own
+    model is untouched.
 
     Use::
 
         draw = FeatherDrawing(dove)
         d = mujoco.MjData(draw.model)
-        d.qpos[:] = qpos; draw.apply(d); mujoco.mj_forward(draw.model, d)   # then render d
+        d.qpos[:] = flight.frame()[draw.ix]; draw.apply(d); mujoco.mj_forward(draw.model, d)
     """
 
     def __init__(self, dove) -> None:
@@ -747,7 +1079,9 @@ class FeatherDrawing:
         if dove.modal is None:
             raise InputError("FeatherDrawing draws a modal dove (Dove.load(feathers='modal'))")
         modes = dove_feather_modes(dove.params, dove.modal)
-        root = ET.fromstring(build_xml(dove.params, modal=dove.modal))
+        engine = dove.modal.integration == "engine"
+        root = ET.fromstring(build_xml(dove.params, twist="tree") if engine else
+                             build_xml(dove.params, modal=dove.modal))
         gone = {fm.name for fm in modes} | {fm.name + UNDERSIDE for fm in modes}
         rgba = {}
         for body in root.iter("body"):
@@ -756,12 +1090,18 @@ class FeatherDrawing:
                     body.remove(g)
         for g in range(dove.model.ngeom):
             rgba[mujoco.mj_id2name(dove.model, mujoco.mjtObj.mjOBJ_GEOM, g)] = dove.model.geom_rgba[g]
+        if engine:  # the coordinates, as display-only joints after every other one
+            world = root.find("worldbody")
+            for fm in modes:
+                for k in range(fm.omega.size):
+                    b = ET.SubElement(world, "body", name=f"{fm.name}_mode{k + 1}_shown")
+                    ET.SubElement(b, "inertial", pos="0 0 0", mass="1e-6", diaginertia="1e-9 1e-9 1e-9")
+                    ET.SubElement(b, "joint", name=f"{fm.name}_mode{k + 1}", type="slide", axis="0 0 1")
         deformable = ET.SubElement(root, "deformable")
         # rest vertices in the bone's frame: the warp at q = 0 (the same vertex order as the
         # force engine's and the meshes')
-        rest = ModalFeathers(dove.model, modes, _drawing_table(), 1.0)
-        for i, fm in enumerate(modes):
-            v = rest.body_vertices(np.zeros(rest.K), i)
+        for fm in modes:
+            v = _rest_vertices(fm)
             # dim 2: a surface drawn from both sides (the meshes needed an underside twin)
             f = ET.SubElement(deformable, "flex", name=fm.name, dim="2", radius="0.0002",
                               body=" ".join([fm.body] * len(v)), vertex=_v(v),
@@ -770,10 +1110,19 @@ class FeatherDrawing:
             ET.SubElement(f, "contact", contype="0", conaffinity="0")
         self.model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
         m = self.model
-        if m.nq != dove.model.nq or not np.array_equal(m.jnt_qposadr, dove.model.jnt_qposadr) \
-                or not np.array_equal(m.body_mass, dove.model.body_mass):
-            raise ModelError("the feather drawing model does not match the dove's qpos layout "
-                             "(a dove not built by Dove.load(feathers='modal')?)")
+        if engine:
+            shown, ix = dove.drawing()
+            nc = sum(fm.omega.size for fm in modes)
+            if m.nq != shown.nq + nc:
+                raise ModelError("the feather drawing model does not match the dove's drawing model")
+            self.ix = np.concatenate([ix, dove.model.nq + np.arange(nc)])
+        else:
+            if m.nq != dove.model.nq or not np.array_equal(m.jnt_qposadr, dove.model.jnt_qposadr) \
+                    or not np.array_equal(m.body_mass, dove.model.body_mass):
+                raise ModelError("the feather drawing model does not match the dove's qpos layout "
+                                 "(a dove not built by Dove.load(feathers='modal'))")
+            self.ix = np.arange(dove.model.nq)
+        """``frame[ix]`` is this model's ``qpos`` (:meth:`~flapsim.bird.flight.DoveFlight.frame`)."""
         self.modal = ModalFeathers(m, modes, _drawing_table(), 1.0)
         self.vertadr = np.array([m.flex_vertadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, fm.name)]
                                  for fm in modes])
@@ -794,14 +1143,29 @@ class FeatherDrawing:
         mujoco.mj_flex(self.model, data)
 
 
+def _rest_vertices(fm: FeatherModes) -> np.ndarray:
+    """The feather's vertices warped at zero coordinates (the force engine's vertex order)."""
+    K = fm.omega.size
+    ff = np.concatenate([fm.root, fm.shaft, fm.chord, fm.normal, [fm.length], fm.gamma,
+                         fm.first_moment.ravel()])
+    grid = np.ascontiguousarray(np.stack([fm.slope, fm.twist], axis=-1).ravel())
+    nv = len(fm.vert_x)
+    wo = nv * 3 * (1 + K)
+    out = np.zeros(wo + (6 + 6 * K) * fm.stations + 3 * K)
+    warp(K, ff, 0, grid, 0, fm.stations, fm.sub, np.zeros(K), np.ascontiguousarray(fm.vert_station, np.int64),
+         np.ascontiguousarray(fm.vert_x, float), 0, nv, out, wo)
+    return out[:wo].reshape(nv, 1 + K, 3)[:, 0, :].copy()
+
+
 def _drawing_table() -> CoefficientTable:
     from flapsim.fluid.coefficients import get_table
 
     return get_table("flat_plate")  # only the geometry (the warp) is used: any table
 
 
-def video_model(dove) -> tuple[mujoco.MjModel, object]:
-    """The rendering model of a modal dove and the ``before_frame`` hook of
-    :func:`flapsim.render.render_video` that draws its feathers bent (:class:`FeatherDrawing`)."""
+def video_model(dove) -> tuple[mujoco.MjModel, object, np.ndarray]:
+    """The rendering model of a modal dove, the ``before_frame`` hook of
+    :func:`flapsim.render.render_video` that draws its feathers bent (:class:`FeatherDrawing`)
+    and the index array ``ix`` that turns a flight's frames into its ``qpos``."""
     draw = FeatherDrawing(dove)
-    return draw.model, draw.before_frame
+    return draw.model, draw.before_frame, draw.ix

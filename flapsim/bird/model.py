@@ -512,19 +512,25 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
 
     ``fixed_trunk_pitch_deg``: weld the trunk to the world (no free joint) at this nose-up
     pitch, for "wind tunnel" measurements. ``modal``: a
-    :class:`~flapsim.bird.feather_modes.ModalParams` adds each feather's modes as point-mass
-    bodies on slide joints (:func:`flapsim.bird.modal_feathers.modal_xml`); ``None``
-    (default) is the rigid-feather model, unchanged. ``twist``: where the primaries' twist
+    :class:`~flapsim.bird.feather_modes.ModalParams`: with ``integration="engine"`` (its
+    default) the rigid model with room in ``userdata`` for the modes the force engine
+    integrates (:func:`flapsim.bird.modal_feathers.modal_engine`); with ``"joints"`` each
+    feather's modes as point-mass bodies on slide joints
+    (:func:`flapsim.bird.modal_feathers.modal_xml`); ``None`` (default) is the rigid-feather
+    model, unchanged. ``twist``: where the primaries' twist
     hinges are: ``"separate"`` (the rigid default) on weightless bodies hung from the world,
     integrated and clamped by the force engine (:mod:`flapsim.fluid.hinges`), or ``"tree"``
-    (the modal default, and the drawing model :meth:`Dove.drawing`) in each primary's body,
-    with a MuJoCo joint limit as the stop.
+    (the modal joints' default, and the drawing model :meth:`Dove.drawing`) in each primary's
+    body, with a MuJoCo joint limit as the stop.
     """
-    twist = twist or ("tree" if modal is not None else "separate")
+    joints = modal is not None and modal.integration == "joints"
+    twist = twist or ("tree" if joints else "separate")
     if twist not in ("separate", "tree"):
         raise ModelError(f"twist must be 'separate' or 'tree', got {twist!r}")
-    if twist == "separate" and modal is not None:
-        raise ModelError("modal feathers hang their modes on the twisted feather: twist='tree'")
+    if twist == "separate" and joints:
+        raise ModelError("modal feathers on joints hang their modes on the twisted feather: twist='tree'")
+    if twist == "tree" and modal is not None and not joints:
+        raise ModelError("engine-integrated modal feathers ride the separate twist hinges: twist='separate'")
     feathers = all_feathers(p)
     by_body: dict[str, list[fz.Feather]] = {}
     for fe in feathers:
@@ -553,15 +559,20 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
     out.append(trunk)
     if twist == "separate":
         out.append(_twist_bodies_xml(p, by_body))
-        # the hinges' memory of their bones' velocities (flapsim.fluid.hinges)
-        out[0] = out[0].replace('<size memory="4M"/>', f'<size memory="4M" nuserdata='
-                                f'"{userdata_size(2 * len(p.primary_angle_deg))}"/>')
+        # the hinges' memory of their bones' velocities (flapsim.fluid.hinges), then the
+        # engine-integrated modes' state (flapsim.bird.modal_feathers)
+        nud = userdata_size(2 * len(p.primary_angle_deg))
+        if modal is not None:
+            from flapsim.bird.modal_feathers import engine_userdata_size
+
+            nud += engine_userdata_size(len(feathers), modal.modes)
+        out[0] = out[0].replace('<size memory="4M"/>', f'<size memory="4M" nuserdata="{nud}"/>')
     out.append("  </worldbody>\n")
     out.append(_tendons_xml(p))
     out.append(_actuators_xml(p))
     out.append(_sensors_xml())
     out.append("</mujoco>\n")
-    if modal is not None:
+    if joints:
         from flapsim.bird.modal_feathers import modal_xml
 
         return modal_xml("".join(out), p, modal)
@@ -1024,4 +1035,6 @@ class Dove:
                   m.actuator_gainprm, m.actuator_forcerange, m.jnt_range, m.jnt_stiffness,
                   m.dof_damping, np.array([m.opt.timestep])):
             h.update(np.ascontiguousarray(a).tobytes())
+        if self.modal is not None:  # the feathers' elasticity and how it is integrated
+            h.update(repr(self.modal).encode())
         return h.hexdigest()[:12]

@@ -9,8 +9,10 @@ import numpy as np
 
 def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float = 30.0,
                width: int = 640, height: int = 480) -> int:
-    """Render every simulation step's ``qpos`` (n, nq) of ``dove``, subsampled to ``fps``,
-    to ``path``; modal feathers are drawn bent. Returns the number of frames."""
+    """Render every simulation step's frame (n, width) of ``dove`` (its ``qpos``, then any
+    engine-integrated modal coordinates: :meth:`~flapsim.bird.flight.DoveFlight.frame`),
+    subsampled to ``fps``, to ``path``; modal feathers are drawn bent. Returns the number of
+    frames."""
     from flapsim.render import ChaseCamera, render_video
 
     model, hook = dove.model, None
@@ -18,7 +20,8 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
     if dove.modal is not None:
         from flapsim.bird.modal_feathers import video_model
 
-        model, hook = video_model(dove)
+        model, hook, ix = video_model(dove)
+        frames = frames[:, ix]
     else:  # the primaries drawn twisted (their hinges are outside the skeleton)
         model, ix = dove.drawing()
         frames = frames[:, ix]

@@ -127,9 +127,9 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         # what is drawn: the dove with its primaries' twist hinges in the skeleton (a flight
         # state's qpos[ix] is its qpos), or the display copy with bendable feathers (the
         # modal dove's own qpos layout)
-        m, ix = fl.dove.drawing() if draw is None else (draw.model, np.arange(fl.model.nq))
+        m, ix = fl.dove.drawing() if draw is None else (draw.model, draw.ix)
         shown = mujoco.MjData(m)
-        _place(m, shown, fl.data.qpos[ix], draw)
+        _place(m, shown, fl.frame()[ix], draw)
         view = AnimalViewer(m, shown, fl.dove.trunk, distance=1.4, launch=launch)
         items = [Polyline(path.point(np.linspace(0, path.length, 400)))] if path is not None else []
         dt = float(m.opt.timestep)

@@ -36,30 +36,44 @@ def _mesh_vertices_world(m: mujoco.MjModel, d: mujoco.MjData, geom: str) -> np.n
     return d.geom_xpos[g] + v @ d.geom_xmat[g].reshape(3, 3).T
 
 
+def _engine(dove) -> ModalFeathers:
+    """The dove's own modal feathers (forces and warp), on its twist hinges."""
+    return ModalFeathers(dove.model, dove_feather_modes(dove.params, dove.modal),
+                         get_table("flat_plate"), 1.0, hinges=dove.twist_hinges(), params=dove.modal)
+
+
 def _bent_state(dove, drawing, k: int = 0) -> tuple[np.ndarray, int, float]:
-    """qpos at rest but for mode ``k`` of FEATHER, set so that its largest section rotation
-    (shaft slope or twist) is ROTATION; returns (qpos, feather index, coordinate)."""
+    """The modal coordinates (n_feathers, K), all zero but mode ``k`` of FEATHER, set so
+    that its largest section rotation (shaft slope or twist) is ROTATION; returns
+    (coordinates, feather index, coordinate)."""
     i = drawing.modal.feather_index(FEATHER)
     fm = drawing.modal.modes[i]
     q = ROTATION / max(np.max(np.abs(fm.slope[:, k])), np.max(np.abs(fm.twist[:, k])))
-    qpos = dove.model.qpos0.copy()
-    qpos[drawing.modal.qadr[i] + k] = q
-    return qpos, i, q
+    coords = np.zeros((len(drawing.modal.modes), drawing.modal.K))
+    coords[i, k] = q
+    return coords, i, q
+
+
+def _frame(dove, coords: np.ndarray) -> np.ndarray:
+    """A flight frame (DoveFlight.frame): the dove's rest qpos, then the coordinates."""
+    return np.concatenate([dove.model.qpos0, coords.ravel()])
 
 
 def test_drawn_feathers_follow_the_imposed_modal_deflection(dove, drawing):
     m = drawing.model
     assert not any(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) in (FEATHER, FEATHER + UNDERSIDE)
                    for g in range(m.ngeom)), "the rigid feather meshes would hide the bent ones"
-    model, hook = video_model(dove)  # what dove_video draws
+    model, hook, ix = video_model(dove)  # what dove_video draws
     assert model.nflex == len(dove_feather_modes(dove.params, dove.modal))
     d, dp = mujoco.MjData(model), mujoco.MjData(dove.model)
+    eng = _engine(dove)
     for k in range(drawing.modal.K):  # bending and twisting modes
-        qpos, i, q = _bent_state(dove, drawing, k)
-        d.qpos[:] = dp.qpos[:] = qpos
+        coords, i, q = _bent_state(dove, drawing, k)
+        d.qpos[:] = _frame(dove, coords)[ix]
         mujoco.mj_forward(model, d)
         hook(d, None)
         mujoco.mj_forward(dove.model, dp)
+        eng.set_coordinates(dp, coords)
         fm = drawing.modal.modes[i]
         a = model.flex_vertadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, FEATHER)]
         drawn = d.flexvert_xpos[a:a + len(fm.vert_x)]
@@ -74,7 +88,6 @@ def test_drawn_feathers_follow_the_imposed_modal_deflection(dove, drawing):
         tol = (ROTATION**2 + ROTATION**2 / 6) * np.abs(lin).max()
         assert (drawn - rest) @ normal == pytest.approx(lin, abs=tol)
         # and it is the force engine's deformed mesh, vertex for vertex
-        eng = ModalFeathers(dove.model, drawing.modal.modes, get_table("flat_plate"), 1.0)
         assert np.allclose(drawn, eng.evaluate(dp).vertices[eng.vert_offset[i]:][:len(fm.vert_x)],
                            atol=1e-9)
         # the other feathers stay where their meshes are
@@ -89,11 +102,12 @@ def _render_rest_and_bent(out: str) -> None:
     first mode) and save the three images to ``out`` (.npz)."""
     dove = Dove.load(feathers="modal")
     drawing = FeatherDrawing(dove)
-    model, hook = video_model(dove)
-    qpos = dove.model.qpos0.copy()
-    bent = qpos.copy()
+    model, hook, ix = video_model(dove)
+    coords = np.zeros((len(drawing.modal.modes), drawing.modal.K))
     for i, fm in enumerate(drawing.modal.modes):
-        bent[drawing.modal.qadr[i]] = DEFLECTION / np.max(np.abs(fm.shape[:, 0]))
+        coords[i, 0] = DEFLECTION / np.max(np.abs(fm.shape[:, 0]))
+    qpos = _frame(dove, 0 * coords)[ix]
+    bent = _frame(dove, coords)[ix]
     cam = mujoco.MjvCamera()
     d = mujoco.MjData(model)
     d.qpos[:] = qpos
@@ -101,7 +115,7 @@ def _render_rest_and_bent(out: str) -> None:
     cam.lookat[:] = d.xpos[dove.trunk]
     cam.distance, cam.elevation, cam.azimuth = 0.6, -30.0, 150.0
     images = []
-    for m, q, h in ((dove.model, qpos, None), (model, qpos, hook), (model, bent, hook)):
+    for m, q, h in ((dove.model, dove.model.qpos0, None), (model, qpos, hook), (model, bent, hook)):
         r = mujoco.Renderer(m, 480, 640)
         try:
             dd = mujoco.MjData(m)
@@ -196,14 +210,17 @@ def test_the_viewer_draws_each_frame_bent(dove, modal_db):
     r = view_flight(0.3, modal_db, feathers="modal",
                     launch=lambda m, d, **kw: _Handle(m, d, frames))
     assert r["status"] == "window closed" and len(frames) == 6
-    eng = ModalFeathers(dove.model, dove_feather_modes(dove.params, dove.modal),
-                        get_table("flat_plate"), 1.0)
+    eng = _engine(dove)
+    ix = FeatherDrawing(dove).ix
     dp = mujoco.MjData(dove.model)
     bend = []
     for m, qpos, drawn in frames:
         assert m.nflex == len(eng.modes)
-        dp.qpos[:] = qpos
+        frame = np.zeros(len(ix))
+        frame[ix] = qpos  # back to the flight's frame: its qpos, then the coordinates
+        dp.qpos[:] = frame[:dove.model.nq]
         mujoco.mj_forward(dove.model, dp)
+        eng.set_coordinates(dp, frame[dove.model.nq:])
         # what is shown is the frame's own bent feathers (not last frame's, not the rest shape)
         assert np.allclose(drawn, eng.evaluate(dp).vertices, atol=1e-9)
         rest = np.concatenate([_mesh_vertices_world(dove.model, dp, fm.name) for fm in eng.modes])

@@ -3,7 +3,9 @@ physics on a bent, moving dove: modal warping written out (Simpson's rule along 
 the sections rotated by the bend and twist angles), the vertex Jacobians and deformation
 velocities by complex-step differentiation of that warp (no hand-written derivative), and the
 forces on each deformed triangle from the shared plate formula
-(:func:`flapsim.fluid.surfaces.plate_force`), spread to the bone and to the modes by virtual work."""
+(:func:`flapsim.fluid.surfaces.plate_force`), spread to the bone and to the modes by virtual work;
+for the engine-integrated modes the primaries ride their twist hinges (the plate's frame turned
+by the hinge angle about its axis, its points moving with the twist rate too)."""
 
 import mujoco
 import numpy as np
@@ -11,7 +13,7 @@ import pytest
 
 from flapsim.bird.feather_modes import ModalParams
 from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.modal_feathers import REC, ModalFeathers, modal_kernel
+from flapsim.bird.modal_feathers import REC, ModalFeathers, modal_engine, modal_kernel
 from flapsim.bird.model import Dove
 from flapsim.bird.wingbeat import p0, with_tail_bias
 from flapsim.fluid.coefficients import get_table
@@ -37,21 +39,38 @@ def _warp(fm, q):
     return fm.root + C[j] + fm.vert_x[:, None] * chord[j]
 
 
-def _reference(prov, m, d, density, cl, cd):
+def _rot(u, th):
+    """Rotation by ``th`` about unit axis ``u`` (Rodrigues)."""
+    ux = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    return np.eye(3) + np.sin(th) * ux + (1 - np.cos(th)) * ux @ ux
+
+
+def _reference(prov, m, d, density, cl, cd, hinges=None):
     """(per-triangle world force, body wrenches about the origin (nbody, 6) as torque|force,
-    generalized forces of the modes (nfeathers, K))."""
+    generalized forces of the modes (nfeathers, K), aerodynamic torque about each hinge)."""
     K = prov.K
     eps = 1e-30
     forces, wrench, Q = [], np.zeros((m.nbody, 6)), np.zeros((len(prov.modes), K))
+    labels = list(hinges.label) if hinges is not None else []
+    hinge_torque = np.zeros(len(labels))
+    coords, rates = prov.state(d)
     for f, fm in enumerate(prov.modes):
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, fm.body)
-        q = d.qpos[prov.qadr[f]:prov.qadr[f] + K]
-        qd = d.qvel[prov.dadr[f]:prov.dadr[f] + K]
+        q, qd = coords[f], rates[f]
         X = _warp(fm, q.astype(complex)).real
         J = np.stack([_warp(fm, q + 1j * eps * np.eye(K)[k]).imag / eps for k in range(K)], 1)
         U = _warp(fm, q + 1j * eps * qd).imag / eps  # deformation velocity, body frame
-        R = d.xmat[b].reshape(3, 3)
-        P = d.xpos[b] + X @ R.T
+        Rb = d.xmat[b].reshape(3, 3)
+        R, origin, spin, h = Rb, d.xpos[b], np.zeros(3), -1
+        if fm.name in labels:  # on its twist hinge: the body frame turned about the axis
+            h = labels.index(fm.name)
+            jt = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, hinges.joint[h])
+            th, thd = d.qpos[m.jnt_qposadr[jt]], d.qvel[m.jnt_dofadr[jt]]
+            R = Rb @ _rot(hinges.axis[h], th)
+            hinge_o = d.xpos[b] + Rb @ hinges.origin[h]
+            origin = hinge_o - R @ hinges.origin[h]
+            spin = thd * (Rb @ hinges.axis[h])
+        P = origin + X @ R.T
         c = d.subtree_com[m.body_rootid[b]]
         om, lin = d.cvel[b, :3], d.cvel[b, 3:]
         for a, bb, cc in fm.faces:
@@ -62,6 +81,8 @@ def _reference(prov, m, d, density, cl, cd):
             fwd = R[:, 0] - (R[:, 0] @ n) * n
             fwd /= np.linalg.norm(fwd)
             v = lin + np.cross(om, p - c) + R @ (U[a] + U[bb] + U[cc]) / 3
+            if h >= 0:
+                v = v + np.cross(spin, p - hinge_o)
             V = WIND - v
             s = np.cross(n, fwd)
             vs = V @ s
@@ -73,15 +94,20 @@ def _reference(prov, m, d, density, cl, cd):
             wrench[b, 3:] += F
             Jw = np.einsum("ij,vkj->vki", R, J[[a, bb, cc]])  # (3 vertices, K, 3) world
             Q[f] += Jw.sum(axis=0) @ F / 3
-    return np.array(forces), wrench, Q
+            if h >= 0:
+                hinge_torque[h] += (Rb @ hinges.axis[h]) @ np.cross(p - hinge_o, F)
+    return np.array(forces), wrench, Q, hinge_torque
 
 
-@pytest.fixture(scope="module", params=[1, 4], ids=["one mode", "four modes"])
+@pytest.fixture(scope="module", params=[(1, "engine"), (4, "engine"), (1, "joints"), (4, "joints")],
+                ids=["one mode", "four modes", "one mode on joints", "four modes on joints"])
 def bent_state(request):
     """A modal dove (the default one mode per feather, and the paper's four: the kernel is
-    compiled for each) one wingbeat into the base flight, its modes then scaled (positions and
-    rates) until the largest bend angle is 1.2 rad: both branches of the kernel's cos/sin."""
-    dove = Dove.load(feathers="modal", modal=ModalParams(modes=request.param))
+    compiled for each; the engine's modes and the joints') one wingbeat into the base flight,
+    its modes then scaled (positions and rates) until the largest bend angle is 1.2 rad: both
+    branches of the kernel's cos/sin."""
+    modes, integration = request.param
+    dove = Dove.load(feathers="modal", modal=ModalParams(modes=modes, integration=integration))
     fl = DoveFlight(dove)
     try:
         cfg = FlightConfig()
@@ -93,35 +119,50 @@ def bent_state(request):
     finally:
         fl.close()
     m, d = fl.model, fl.data
+    hinges = dove.twist_hinges() if integration == "engine" else None
     prov = ModalFeathers(m, fl.modal.modes, get_table(fl.table), 1.225,
-                         FlowField([Uniform(tuple(WIND))]))
-    top = max(np.abs(fm.slope @ d.qpos[prov.qadr[f]:prov.qadr[f] + prov.K]).max()
-              for f, fm in enumerate(prov.modes))
-    for f in range(len(prov.modes)):
-        d.qpos[prov.qadr[f]:prov.qadr[f] + prov.K] *= 1.2 / top
-        d.qvel[prov.dadr[f]:prov.dadr[f] + prov.K] *= 1.2 / top
+                         FlowField([Uniform(tuple(WIND))]), hinges=hinges, params=dove.modal)
+    q, qd = prov.state(d)
+    top = max(np.abs(fm.slope @ q[f]).max() for f, fm in enumerate(prov.modes))
     mujoco.mj_forward(m, d)
-    return m, d, prov
+    prov.set_coordinates(d, q * 1.2 / top, qd * 1.2 / top)
+    if hinges is not None:  # the primaries twisted well open and turning
+        for h in range(len(hinges)):
+            jt = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, hinges.joint[h])
+            d.qpos[m.jnt_qposadr[jt]] = 0.3 + 0.05 * h
+            d.qvel[m.jnt_dofadr[jt]] = 20.0 - 2.0 * h
+        mujoco.mj_forward(m, d)
+    return m, d, prov, hinges
 
 
 def test_kernel_equals_the_reference_on_a_bent_moving_dove(bent_state):
-    m, d, prov = bent_state
-    angles = np.concatenate([np.abs(fm.slope @ d.qpos[prov.qadr[f]:prov.qadr[f] + prov.K])
-                             for f, fm in enumerate(prov.modes)])
+    m, d, prov, hinges = bent_state
+    q = prov.coordinates(d)
+    angles = np.concatenate([np.abs(fm.slope @ q[f]) for f, fm in enumerate(prov.modes)])
     assert angles.max() > 0.5 and np.median(angles) < 0.5  # the polynomial and libm both used
     rec = np.zeros(REC * prov.ntri + 3 * prov.nvert)
     w = np.zeros(6 * m.nbody)
     arrays = prov.arrays(m, d, record=rec)
-    qfrc = np.zeros(m.nv)
-    arrays[7] = qfrc
-    assert modal_kernel(w, *arrays) == 0
-    F, W, Q = _reference(prov, m, d, 1.225, prov._cl, prov._cd)
+    if prov.engine:
+        arrays[prov.QFRC_ARG_ENGINE] = np.zeros(m.nv)
+        arrays[-1] = d.userdata.copy()
+        assert modal_engine(w, *arrays) == 0
+        got_Q = arrays[21].reshape(len(prov.modes), prov.K)
+        got_tau = arrays[25].reshape(len(hinges), -1)[:, 16]  # the hinges' aerodynamic torque
+    else:
+        qfrc = np.zeros(m.nv)
+        arrays[7] = qfrc
+        assert modal_kernel(w, *arrays) == 0
+        got_Q = np.array([qfrc[a:a + prov.K] for a in prov.dadr])
+    F, W, Q, tau = _reference(prov, m, d, 1.225, prov._cl, prov._cd, hinges)
     got_F = rec[:REC * prov.ntri].reshape(-1, REC)[:, 0:3]
     assert np.abs(F).max() > 1e-3  # a real load
     np.testing.assert_allclose(got_F, F, rtol=0, atol=1e-9 * np.abs(F).max())
     np.testing.assert_allclose(w.reshape(-1, 6), W, rtol=0, atol=1e-9 * np.abs(W).max())
-    got_Q = np.array([qfrc[a:a + prov.K] for a in prov.dadr])
     np.testing.assert_allclose(got_Q, Q, rtol=0, atol=1e-9 * np.abs(Q).max())
+    if prov.engine:
+        assert np.abs(tau).max() > 1e-6
+        np.testing.assert_allclose(got_tau, tau, rtol=0, atol=1e-9 * np.abs(tau).max())
 
 
 def test_kernel_cos_sin_is_libm_to_the_last_bits():
