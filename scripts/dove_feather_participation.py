@@ -5,6 +5,9 @@ feather; reports each mode's share of the shaft-tip deflection and tip twist (RM
 flight, all feathers pooled, 4-mode run), and for each mode count: lift/weight, the
 primaries' RMS tip deflection and twist, and the cost per step (bare ``mj_step``).
 Usage: ``python scripts/dove_feather_participation.py [--wingbeats 10] [--json out.json]``.
+The modes ride MuJoCo joints here (``ModalParams(integration="joints")``: their coordinates
+are in the recorded ``qpos``); the engine's integration gives the same shares (its tip
+deflections follow the joints', ``tests/bird/test_modal_feathers.py``).
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ def main() -> dict:
     rigid = Dove.load()
     out["rigid_bare_us"] = bare_us(rigid.model)
     for K in (4, 2, 1):
-        dove = Dove.load(feathers="modal", modal=ModalParams(modes=K))
+        dove = Dove.load(feathers="modal", modal=ModalParams(modes=K, integration="joints"))
         f = fly(dove, a.wingbeats)
         met = flight_metrics(f)
         dfl, tw, names = tip_series(dove, f.qpos)
