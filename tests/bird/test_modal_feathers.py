@@ -560,3 +560,20 @@ def test_fly_command_takes_feathers_modal(tmp_path, modal_dove):
     assert main(["fly", "--feathers", "modal", "--wingbeats", "1", "--json", str(out)]) == 0
     res = json.loads(out.read_text())
     assert res["feathers"] == "modal" and res["model_hash"] != RIGID_HASH and res["finite"]
+
+
+def test_calibration_scene_bends_at_the_downstroke_and_twists_at_the_upstroke():
+    """The paper's Fig. 3/12 in the calibration scene (trunk fixed at 5 deg in a 7 m/s
+    headwind, the reference wingbeat, engine-integrated modes): the outer primary's tip bends
+    up (dorsally) under the downstroke's lift, and less (or down) in the upstroke; its vanes
+    twist open at the upstroke (tens of degrees: the hinge's stop is at the twist limit) and
+    stay nearly shut at the downstroke (a few degrees at most). The secondary, with no hinge,
+    does not twist beyond its elastic twist (below 0.1 deg)."""
+    from flapsim.bird.calibration import record, summary
+
+    res = summary(record(7.0, 5.0))
+    p8, s5 = res["l_p8"], res["l_s5"]
+    assert p8["downstroke_mean_deflection_mm"] > 1.0
+    assert p8["downstroke_mean_deflection_mm"] > p8["upstroke_mean_deflection_mm"] + 2.0
+    assert p8["upstroke_mean_twist_deg"] > 20.0 > 5.0 > p8["downstroke_mean_twist_deg"]
+    assert max(abs(s5["upstroke_mean_twist_deg"]), abs(s5["downstroke_mean_twist_deg"])) < 0.1
