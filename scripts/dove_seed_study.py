@@ -3,7 +3,7 @@ bundled command, ``--seed N``; kept in ``--cache``, resumable) and fly the whole
 with each, printing the README's per-seed table.
 
     PYTHONPATH=. python scripts/dove_seed_study.py --seeds 1-8 [--cache seed_dbs] [--json out.json]
-        [--eval-args "--k 100 --bank-lead 0"] [--quick]
+        [--eval-args "--k 100 --bank-lead 0"] [--quick] [--feathers modal]
 
 Each database takes ~3.3 min to train and the suite ~2.5 min to fly on the 2 cores.
 """
@@ -60,20 +60,24 @@ def main() -> None:
     ap.add_argument("--eval-args", default="", help="more flapsim eval arguments, quoted")
     ap.add_argument("--quick", action="store_true", help="the suite's short variants (smoke run)")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
+                    help="the dove the databases are trained on and flown with")
     a = ap.parse_args()
     cache = Path(a.cache)
     cache.mkdir(exist_ok=True)
     flight = _flight_scenarios()
     rows, results = [], {}
     for seed in _seeds(a.seeds):
-        db = cache / f"seed{seed}.db"
+        tag = "" if a.feathers == "rigid" else "modal_"
+        db = cache / f"{tag}seed{seed}.db"
         if not db.exists():
             subprocess.run([sys.executable, "-m", "flapsim.cli", "train", "--samples", str(a.samples),
                             "--pre-pitch-deg", "10", "--pre-roll-deg", "10", "--seed", str(seed),
-                            "--float32", "--out", str(db)], check=True)
-        out = cache / f"suite_seed{seed}.json"
+                            "--float32", "--feathers", a.feathers, "--out", str(db)], check=True)
+        out = cache / f"{tag}suite_seed{seed}.json"
         cmd = [sys.executable, "-m", "flapsim.cli", "eval", "--scenario", ",".join(flight),
-               "--db", str(db), "--json", str(out), *shlex.split(a.eval_args)]
+               "--db", str(db), "--feathers", a.feathers, "--json", str(out),
+               *shlex.split(a.eval_args)]
         if a.quick:
             cmd.append("--quick")
         subprocess.run(cmd)  # exits 1 when a run got lost: the table says which
