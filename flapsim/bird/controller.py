@@ -874,19 +874,31 @@ def cruise_metrics(f: ControlledFlight, target: CruiseTarget) -> dict:
 BUNDLED_DB = "dove_controller.db"
 
 
-def bundled_database_path():
+BUNDLED_MODAL_DB = "dove_controller_modal.db"
+"""The modal-feather dove's database: the rigid one's command with ``--feathers modal``
+(phase 1, 10,000 samples, pre-states within 10 deg, seed 2, float32)."""
+
+
+def bundled_database_path(feathers: str = "rigid"):
+    """The bundled controller database of the rigid (default) or the modal-feather dove
+    (``Dove.load(feathers="modal")`` with the default :class:`~flapsim.bird.feather_modes.
+    ModalParams`)."""
     from pathlib import Path
 
-    return Path(__file__).resolve().parent / "data" / BUNDLED_DB
+    names = {"rigid": BUNDLED_DB, "modal": BUNDLED_MODAL_DB}
+    if feathers not in names:
+        raise InputError(f"feathers must be 'rigid' or 'modal', got {feathers!r}")
+    return Path(__file__).resolve().parent / "data" / names[feathers]
 
 
-def database_table(db_path=None) -> str:
-    """The feather coefficient table a controller database (default: the bundled one) was
-    sampled with: its sampling configuration's, or the default table where it names none (a
-    merged database, say). A learned controller flies with that table only."""
+def database_table(db_path=None, feathers: str = "rigid") -> str:
+    """The feather coefficient table a controller database (default: the bundled one of the
+    ``feathers`` dove) was sampled with: its sampling configuration's, or the default table
+    where it names none (a merged database, say). A learned controller flies with that table
+    only."""
     from flapsim.bird.database import read_header
 
-    cfg = read_header(db_path or bundled_database_path()).get("config") or {}
+    cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
     return str(cfg.get("table") or FlightConfig.table)
 
 
@@ -895,7 +907,8 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
                     predict: str = "simulate", predict_every: int = 4,
                     mirror: bool = True, state_weight: float = 0.0,
                     clip_request: float = DEFAULT_CLIP_REQUEST) -> WingbeatController:
-    """A controller over a database (default: the bundled one) built for ``flight``'s model;
+    """A controller over a database (default: the bundled one of ``flight``'s dove, rigid or
+    modal feathers) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error.
 
     ``mirror`` (default): the regression searches the samples and their mirror images
@@ -916,7 +929,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
     from flapsim.bird.database import load_database
 
-    path = db_path or bundled_database_path()
+    path = db_path or bundled_database_path(flight.dove.feathers)
     db = load_database(path, model_hash=flight.dove.hash(), require_finalized=True)
     for name in ("dS", "dP"):
         if name not in db.arrays:
@@ -964,7 +977,7 @@ def attach_predictor(ctl: WingbeatController, db_path=None, every: int = 4) -> W
     ``predict="regression"``."""
     from flapsim.bird.database import load_database
 
-    path = db_path or bundled_database_path()
+    path = db_path or bundled_database_path(ctl.flight.dove.feathers)
     db = load_database(path, model_hash=ctl.flight.dove.hash(), require_finalized=True)
     ctl.predictor = _predictor(db, path, every)
     return ctl

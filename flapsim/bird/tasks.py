@@ -169,8 +169,8 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
 
-    fl = DoveFlight(Dove.load(feathers=task.feathers), table=database_table(db), wind=tuple(task.wind),
-                    flow=tuple(task.flow), plucked=tuple(task.plucked))
+    fl = DoveFlight(Dove.load(feathers=task.feathers), table=database_table(db, task.feathers),
+                    wind=tuple(task.wind), flow=tuple(task.flow), plucked=tuple(task.plucked))
     try:
         ctl = load_controller(fl, db, method=method, k=k, mirror=mirror, **options)
     except BaseException:

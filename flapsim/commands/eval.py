@@ -155,12 +155,11 @@ def run(args: argparse.Namespace) -> dict:
                                  predict=args.predict, bank_lead_s=args.bank_lead, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
-    if args.feathers != "rigid" and not args.db:
-        raise InputError("--feathers modal needs --db: a database trained with modal feathers "
-                         "(flapsim train --feathers modal ...); the bundled one is the rigid dove's")
     if args.table1:
         return _table1(args, opts)
     runs = [(n, opts) for n in _names(args)]
+    if args.db and any(scenarios.get(n).family == "flight" for n, _ in runs):
+        _check_db_model(args.db, args.feathers)
     for d in (plots, video):
         if d:
             Path(d).mkdir(exist_ok=True)
@@ -170,6 +169,21 @@ def run(args: argparse.Namespace) -> dict:
     return {"scenarios": results, "runs": len(results), "failed": failed,
             "exit_status": 1 if failed else 0,
             "options": opts.to_dict()}
+
+
+def _check_db_model(db: str, feathers: str) -> None:
+    """A database of another dove is a one-line error before any worker starts (each run
+    would fail alike)."""
+    from flapsim.bird.database import read_header
+    from flapsim.bird.model import Dove
+
+    have, want = read_header(db).get("model_hash"), Dove.load(feathers=feathers).hash()
+    if have != want:
+        other = "modal" if feathers == "rigid" else "rigid"
+        hint = (f"fly it with --feathers {other}" if have == Dove.load(feathers=other).hash()
+                else f"train one for this dove: flapsim train --feathers {feathers} --out NEW.db")
+        raise InputError(f"{db} was built for model {have}, not the {feathers}-feather dove "
+                         f"({want}): {hint}")
 
 
 def execute(runs: list[tuple[str, object]], workers: int | None, backend: str = "local",
@@ -267,11 +281,11 @@ def _list() -> dict:
 
 # -- Table I --------------------------------------------------------------------------------
 
-def _bundled_seed() -> int:
+def _bundled_seed(feathers: str = "rigid") -> int:
     from flapsim.bird.controller import bundled_database_path
     from flapsim.bird.database import load_database
 
-    return int(load_database(bundled_database_path(), require_finalized=True).header["seed"])
+    return int(load_database(bundled_database_path(feathers), require_finalized=True).header["seed"])
 
 
 def _is_bundled_run(config, n: int) -> bool:
@@ -282,7 +296,7 @@ def _is_bundled_run(config, n: int) -> bool:
     from flapsim.bird.sampling import SampleWorker
     from flapsim.bird.training import run_header
 
-    db = load_database(bundled_database_path(), require_finalized=True)
+    db = load_database(bundled_database_path(config.feathers), require_finalized=True)
     ident = run_header(config, SampleWorker, "dove-phase1")
     return db.n == n and all(db.header.get(k) == ident.get(k)
                              for k in ("kind", "worker", "config_class", "config", "seed"))
@@ -315,8 +329,9 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     cache.mkdir(exist_ok=True)
     # the bundled database's sampling (phase 1, pre-states within 10 deg) and, unless asked
     # otherwise, its seed: one draw of the databases, whose spread the README measures
-    seed = args.table1_seed if getattr(args, "table1_seed", None) is not None else _bundled_seed()
-    config = SamplingConfig(seed=seed, pitch_deg=10.0, roll_deg=10.0)
+    seed = (args.table1_seed if getattr(args, "table1_seed", None) is not None
+            else _bundled_seed(opts.feathers))
+    config = SamplingConfig(seed=seed, pitch_deg=10.0, roll_deg=10.0, feathers=opts.feathers)
     dbs = {}
     for n in sorted(set(sizes)):
         out = cache / f"phase1_{n}.db"
@@ -326,7 +341,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
 
             from flapsim.bird.controller import bundled_database_path
 
-            shutil.copyfile(bundled_database_path(), out)
+            shutil.copyfile(bundled_database_path(config.feathers), out)
             print(f"database of {n} samples: {out} (the bundled one)")
         else:
             print(f"database of {n} samples: {out}")

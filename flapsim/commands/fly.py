@@ -114,9 +114,6 @@ def run(args: argparse.Namespace) -> dict:
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")
-        if args.feathers != "rigid":
-            raise InputError("--path flies the rigid-feather dove (the bundled database's model); "
-                             "drop --feathers modal")
         return _run_path(args, cfg, width, height)
     if args.controller == "learned" or args.db or args.roll_deg:
         return _run_controlled(args, cfg, width, height)
@@ -177,7 +174,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     if args.controller == "learned" and not args.table:
         from flapsim.bird.controller import database_table
 
-        cfg = dataclasses.replace(cfg, table=database_table(args.db))
+        cfg = dataclasses.replace(cfg, table=database_table(args.db, args.feathers))
     fl = DoveFlight(dove, table=cfg.table)
     try:
         if args.controller == "learned":
@@ -228,7 +225,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     from flapsim.bird.tasks import Task, fly_task
 
     path = args.flight_path
-    task = Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats)
+    task = Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats, feathers=args.feathers)
     predict = getattr(args, "predict", "simulate")
     r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
                  record=bool(args.video or args.out), clip_request=args.clip_request,
@@ -271,7 +268,7 @@ def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, h
     if args.video:
         from flapsim.bird.video import dove_video
 
-        n = dove_video(Dove.load(), r.qpos, args.video, args.fps, width, height)
+        n = dove_video(Dove.load(feathers=args.feathers), r.qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
 

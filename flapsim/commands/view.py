@@ -26,8 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="neighbours (default: 2%% of the samples searched for lwlr, 0.5%% for knn)")
     add_regression_arguments(p)
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
-                   help="rigid feather plates (default) or modal feathers, drawn bent (needs --db: a "
-                        "database trained with flapsim train --feathers modal)")
+                   help="rigid feather plates (default) or modal feathers, drawn bent (their own "
+                        "bundled database, or --db: one trained with flapsim train --feathers modal)")
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -40,9 +40,6 @@ def run(args: argparse.Namespace) -> dict:
     from flapsim.commands.eval import check_regression_options
 
     check_regression_options(args)
-    if args.feathers != "rigid" and not args.db:
-        raise InputError("--feathers modal needs --db: a database trained with modal feathers "
-                         "(flapsim train --feathers modal ...); the bundled one is the rigid dove's")
     path = None
     if args.path:
         from flapsim.bird.path import load_path

@@ -44,6 +44,22 @@ def trim(flight, controller):
     return trim_of_base_flight(flight, controller.P0)
 
 
+def test_bundled_modal_database_is_for_the_modal_dove_and_finished():
+    """The modal-feather dove's own bundled database: the rigid one's command with --feathers
+    modal (the same sampling and seed), bound to the modal dove's hash, chosen by default."""
+    modal = Dove.load(feathers="modal")
+    db = load_database(bundled_database_path("modal"), model_hash=modal.hash(), require_finalized=True)
+    rigid = load_database(bundled_database_path(), require_finalized=True)
+    assert db.header["config"]["feathers"] == "modal" and db.n == rigid.n == 10000
+    assert db.header["seed"] == rigid.header["seed"]
+    assert {k: v for k, v in db.header["config"].items() if k != "feathers"} == rigid.header["config"]
+    fl = DoveFlight(modal)
+    try:
+        assert load_controller(fl).regressor.n == 2 * db.n  # the default for a modal flight
+    finally:
+        fl.close()
+
+
 def test_bundled_database_is_for_this_model_and_finished():
     db = load_database(bundled_database_path(), model_hash=Dove.load().hash(),
                        require_finalized=True)

@@ -27,11 +27,16 @@ def test_view_without_a_display_is_a_one_line_error(monkeypatch, capsys):
 
 
 def test_view_with_modal_feathers_needs_a_modal_database(monkeypatch, capsys):
-    # the bundled database is the rigid dove's (a modal one is bound to the modal dove's hash)
+    # the rigid dove's bundled database is refused by the modal dove (a database is bound to
+    # its model's hash), before any window opens
+    from flapsim.bird.controller import bundled_database_path
+
     monkeypatch.setenv("DISPLAY", ":0")
-    assert cli.main(["view", "--feathers", "modal", "--seconds", "1"]) == 2
+    monkeypatch.setenv("MUJOCO_GL", "glfw")
+    assert cli.main(["view", "--feathers", "modal", "--seconds", "1", "--db",
+                     str(bundled_database_path())]) == 2
     err = capsys.readouterr().err
-    assert "--db" in err and len(err.strip().splitlines()) == 1
+    assert "built for model" in err and len(err.strip().splitlines()) == 1
 
 
 def _bird_pixels(rgb: np.ndarray) -> np.ndarray:
