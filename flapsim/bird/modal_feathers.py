@@ -363,6 +363,27 @@ def _add_wrench(w, b, tx, ty, tz, fx, fy, fz):
     w[o + 5] += fz
 
 
+@njit(cache=True, inline="always")
+def _feather_frame(hh, b, xpos, xmat, hflt, hs):
+    """A feather's frame (its modes and mesh are in it): the rotation ``R`` (9, row-major),
+    the world position of its reference point (3) and that point in the body frame (3), and
+    the frame's angular velocity beyond its bone's (3). On twist hinge ``hh >= 0``
+    (:func:`~flapsim.fluid.hinges.hinge_frames`' ``hs``): the bone's frame turned by the hinge
+    angle, the hinge point, the twist rate about the axis; off a hinge (-1) the bone's frame,
+    its origin, zero."""
+    if hh >= 0:
+        so = HS * hh
+        o = HF * hh
+        return (hs[so + 7], hs[so + 8], hs[so + 9], hs[so + 10], hs[so + 11], hs[so + 12],
+                hs[so + 13], hs[so + 14], hs[so + 15], hs[so + 4], hs[so + 5], hs[so + 6],
+                hflt[o + 3], hflt[o + 4], hflt[o + 5], hs[so] * hs[so + 1], hs[so] * hs[so + 2],
+                hs[so] * hs[so + 3])
+    m = 9 * b
+    return (xmat[m], xmat[m + 1], xmat[m + 2], xmat[m + 3], xmat[m + 4], xmat[m + 5], xmat[m + 6],
+            xmat[m + 7], xmat[m + 8], xpos[3 * b], xpos[3 * b + 1], xpos[3 * b + 2], 0.0, 0.0, 0.0,
+            0.0, 0.0, 0.0)
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def modal_kernel(w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, ff, grid, vst, vx,
                  tri, scratch, ext, cl_tab, cd_tab, flow, fluid, tnow, rec):
@@ -418,26 +439,12 @@ def _modal_forces(K, w, xpos, xmat, cvel, scom, rootid, qpos, qvel, qfrc, fint, 
             scratch[qo + 2 * K + k] = qvel[da + k]
         _stations(K, ff, fo, grid, go, nst, sub, scratch, qo + K, scratch, 0)
         hh = fint[FI * f + 10]
-        # the hinge's twist rate (world vector) and a point of its axis: zero off a hinge
-        ewx = ewy = ewz = 0.0
-        hox = hoy = hoz = 0.0
-        if hh >= 0:  # the twisted plate's frame: x_world = o_h + R (x_body - o_body)
-            so = HS * hh
-            R00, R01, R02 = hs[so + 7], hs[so + 8], hs[so + 9]
-            R10, R11, R12 = hs[so + 10], hs[so + 11], hs[so + 12]
-            R20, R21, R22 = hs[so + 13], hs[so + 14], hs[so + 15]
-            hox, hoy, hoz = hs[so + 4], hs[so + 5], hs[so + 6]
-            lo0, lo1, lo2 = hflt[HF * hh + 3], hflt[HF * hh + 4], hflt[HF * hh + 5]
-            ox = hox - (R00 * lo0 + R01 * lo1 + R02 * lo2)
-            oy = hoy - (R10 * lo0 + R11 * lo1 + R12 * lo2)
-            oz = hoz - (R20 * lo0 + R21 * lo1 + R22 * lo2)
-            ewx, ewy, ewz = hs[so] * hs[so + 1], hs[so] * hs[so + 2], hs[so] * hs[so + 3]
-        else:
-            m = 9 * b
-            R00, R01, R02 = xmat[m], xmat[m + 1], xmat[m + 2]
-            R10, R11, R12 = xmat[m + 3], xmat[m + 4], xmat[m + 5]
-            R20, R21, R22 = xmat[m + 6], xmat[m + 7], xmat[m + 8]
-            ox, oy, oz = xpos[3 * b], xpos[3 * b + 1], xpos[3 * b + 2]
+        (R00, R01, R02, R10, R11, R12, R20, R21, R22, hox, hoy, hoz, lo0, lo1, lo2, ewx, ewy,
+         ewz) = _feather_frame(hh, b, xpos, xmat, hflt, hs)
+        # the frame's origin: x_world = o + R x_body
+        ox = hox - (R00 * lo0 + R01 * lo1 + R02 * lo2)
+        oy = hoy - (R10 * lo0 + R11 * lo1 + R12 * lo2)
+        oz = hoz - (R20 * lo0 + R21 * lo1 + R22 * lo2)
         r = rootid[b]
         c0, c1, c2 = scom[3 * r], scom[3 * r + 1], scom[3 * r + 2]
         wx, wy, wz = cvel[6 * b], cvel[6 * b + 1], cvel[6 * b + 2]
@@ -690,24 +697,10 @@ def modal_engine(w, xpos, xmat, cvel, scom, rootid, fint, ff, grid, vst, vx, tri
         hh = fint[FI * f + 10]
         fo = FF * f
         wx, wy, wz = cvel[6 * b], cvel[6 * b + 1], cvel[6 * b + 2]
-        lo0 = lo1 = lo2 = 0.0
-        if hh >= 0:  # the twisted plate: origin on the hinge axis, turning with the twist too
-            so = HS * hh
-            R00, R01, R02 = hs[so + 7], hs[so + 8], hs[so + 9]
-            R10, R11, R12 = hs[so + 10], hs[so + 11], hs[so + 12]
-            R20, R21, R22 = hs[so + 13], hs[so + 14], hs[so + 15]
-            ox, oy, oz = hs[so + 4], hs[so + 5], hs[so + 6]
-            lo0, lo1, lo2 = hflt[HF * hh + 3], hflt[HF * hh + 4], hflt[HF * hh + 5]
-            pwx = wx + hs[so] * hs[so + 1]
-            pwy = wy + hs[so] * hs[so + 2]
-            pwz = wz + hs[so] * hs[so + 3]
-        else:
-            m = 9 * b
-            R00, R01, R02 = xmat[m], xmat[m + 1], xmat[m + 2]
-            R10, R11, R12 = xmat[m + 3], xmat[m + 4], xmat[m + 5]
-            R20, R21, R22 = xmat[m + 6], xmat[m + 7], xmat[m + 8]
-            ox, oy, oz = xpos[3 * b], xpos[3 * b + 1], xpos[3 * b + 2]
-            pwx, pwy, pwz = wx, wy, wz
+        # on a hinge the reference point is on its axis and the frame turns with the twist too
+        (R00, R01, R02, R10, R11, R12, R20, R21, R22, ox, oy, oz, lo0, lo1, lo2, ewx, ewy,
+         ewz) = _feather_frame(hh, b, xpos, xmat, hflt, hs)
+        pwx, pwy, pwz = wx + ewx, wy + ewy, wz + ewz
         r = rootid[b]
         dx, dy, dz = ox - scom[3 * r], oy - scom[3 * r + 1], oz - scom[3 * r + 2]
         vox = cvel[6 * b + 3] + wy * dz - wz * dy
