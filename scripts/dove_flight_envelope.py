@@ -2,7 +2,7 @@
 climbs of growing angle, each flown once with the bundled database (or --db), judged as
 ``flapsim eval`` judges (lost = farther than 3 m from the path).
 
-    PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--json out.json]
+    PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--feathers modal] [--json out.json]
 """
 
 from __future__ import annotations
@@ -29,13 +29,15 @@ def main() -> None:
     ap.add_argument("--radii", default="8,10,12,15,20")
     ap.add_argument("--climbs", default="1,2,3,5")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
+                    help="the dove (and, without --db, its bundled database)")
     a = ap.parse_args()
     rows = []
     cases = [("circle", float(r)) for r in a.radii.split(",")]
     cases += [("climb", float(c)) for c in a.climbs.split(",")]
     for kind, x in cases:
         path = inclined_circle(radius_m=x, turns=1.0) if kind == "circle" else climb(x)
-        r = fly_task(Task(path), a.db)
+        r = fly_task(Task(path, feathers=a.feathers), a.db)
         m = r.metrics
         bank = np.degrees(np.arctan(49.0 / (9.81 * x))) if kind == "circle" else 0.0
         row = {"kind": kind, "value": x, "bank_needed_deg": bank, "status": r.status,
