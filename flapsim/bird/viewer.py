@@ -15,8 +15,8 @@ the simulation loop between wingbeats (the viewer's key callback only queues the
 * Home: tracking / free camera.
 
 With a path (``path=``) the bird follows it instead (keys still push and gust) and the
-path is drawn. With modal feathers (``feathers="modal"``, a database trained on that dove)
-the feathers are drawn bent each frame (:class:`flapsim.bird.modal_feathers.FeatherDrawing`,
+path is drawn. With modal feathers (``feathers="modal"``, with their own bundled database or
+another trained on that dove) the feathers are drawn bent each frame (:class:`flapsim.bird.modal_feathers.FeatherDrawing`,
 the videos' drawing).
 """
 
@@ -96,7 +96,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 path=None, launch=None, feathers: str = "rigid", **options) -> dict:
     """Fly the dove under the keys for ``seconds`` of simulated time (or until the window
     closes); returns what happened (keys, headings, distance). ``feathers``: ``rigid`` or
-    ``modal`` (then ``db`` must be a database of the modal dove); ``options``: the
+    ``modal`` (``db``: by default the bundled database of that dove); ``options``: the
     regression's (:func:`~flapsim.bird.controller.load_controller`: ``mirror``,
     ``clip_request``, ...)."""
     from flapsim.bird.controller import CruiseTarget, start_cruise, trim_of_base_flight
