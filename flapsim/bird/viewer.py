@@ -16,8 +16,8 @@ the simulation loop between wingbeats (the viewer's key callback only queues the
 
 With a path (``path=``) the bird follows it instead (keys still push and gust) and the
 path is drawn. With modal feathers (``feathers="modal"``, with their own bundled database or
-another trained on that dove) the feathers are drawn bent each frame (:class:`flapsim.bird.modal_feathers.FeatherDrawing`,
-the videos' drawing).
+another trained on that dove) the feathers are drawn bent each frame
+(:class:`flapsim.bird.modal_feathers.FeatherDrawing`, the videos' drawing).
 """
 
 from __future__ import annotations
