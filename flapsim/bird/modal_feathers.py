@@ -57,7 +57,18 @@ from flapsim.bird.feather_modes import FeatherModes, ModalParams, feather_modes
 from flapsim.errors import InputError, ModelError
 from flapsim.fluid.coefficients import CoefficientTable
 from flapsim.fluid.flow import FlowField, flow_at
-from flapsim.fluid.hinges import HF, HI, HS, PolygonHinges, bone_accelerations, hinge_frames, hinge_torque
+from flapsim.fluid.hinges import (
+    HF,
+    HI,
+    HS,
+    PolygonHinges,
+    advance_clock,
+    bone_accelerations,
+    hinge_frames,
+    hinge_torque,
+    memory_acceleration,
+    shift_memory,
+)
 from flapsim.fluid.surfaces import plate_force, pseudo_angle_tables
 from flapsim.sim.callbacks import CompiledProvider, Registration, register, register_kernel, time_view
 
@@ -659,19 +670,12 @@ def modal_engine(w, xpos, xmat, cvel, scom, rootid, fint, ff, grid, vst, vx, tri
     nm = K * nfe
     sa = mo + 2
     fr = sa + MODE_SLOTS * nm
-    tol = 0.25 * dt
-    if abs(t - ud[mo + 1] - dt) < tol:  # one step on: the next state is the current one
-        ud[mo] = ud[mo + 1]
+    stepped, diff = advance_clock(ud, mo, t, dt)
+    if stepped:  # one step on: the next state is the current one
         for i in range(nm):
             ud[sa + 4 * i] = ud[sa + 4 * i + 2]
             ud[sa + 4 * i + 1] = ud[sa + 4 * i + 3]
-        for f in range(nfe):
-            for k in range(6):
-                ud[fr + 12 * f + k] = ud[fr + 12 * f + 6 + k]
-    elif abs(t - ud[mo + 1]) >= tol:
-        ud[mo] = np.nan
-    ud[mo + 1] = t
-    diff = abs(ud[mo] - (t - dt)) < tol
+        shift_memory(ud, fr, nfe)
     for i in range(nm):
         qbuf[i] = ud[sa + 4 * i]
         vbuf[i] = ud[sa + 4 * i + 1]
@@ -706,25 +710,9 @@ def modal_engine(w, xpos, xmat, cvel, scom, rootid, fint, ff, grid, vst, vx, tri
         vox = cvel[6 * b + 3] + wy * dz - wz * dy
         voy = cvel[6 * b + 4] + wz * dx - wx * dz
         voz = cvel[6 * b + 5] + wx * dy - wy * dx
-        u = fr + 12 * f
-        if diff:  # what the integrator did over the last step
-            aox = (vox - ud[u]) / dt - gx
-            aoy = (voy - ud[u + 1]) / dt - gy
-            aoz = (voz - ud[u + 2]) / dt - gz
-            alx = (pwx - ud[u + 3]) / dt
-            aly = (pwy - ud[u + 4]) / dt
-            alz = (pwz - ud[u + 5]) / dt
-        else:  # the bone's explicit acceleration (the twist's own left out, once)
-            alx, aly, alz = cacc[6 * b], cacc[6 * b + 1], cacc[6 * b + 2]
-            aox = cacc[6 * b + 3] + aly * dz - alz * dy + wy * voz - wz * voy - gx
-            aoy = cacc[6 * b + 4] + alz * dx - alx * dz + wz * vox - wx * voz - gy
-            aoz = cacc[6 * b + 5] + alx * dy - aly * dx + wx * voy - wy * vox - gz
-        ud[u + 6] = vox
-        ud[u + 7] = voy
-        ud[u + 8] = voz
-        ud[u + 9] = pwx
-        ud[u + 10] = pwy
-        ud[u + 11] = pwz
+        aox, aoy, aoz, alx, aly, alz = memory_acceleration(diff, dt, gx, gy, gz, ud, fr + 12 * f,
+                                                           vox, voy, voz, pwx, pwy, pwz, wx, wy,
+                                                           wz, cacc, b, dx, dy, dz)
         n0, n1, n2 = ff[fo + 9], ff[fo + 10], ff[fo + 11]
         nwx = R00 * n0 + R01 * n1 + R02 * n2
         nwy = R10 * n0 + R11 * n1 + R12 * n2

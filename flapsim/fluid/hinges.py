@@ -243,6 +243,62 @@ def bone_accelerations(parent, dofadr, dofnum, cdof, cdof_dot, qvel, qacc, cacc)
     return 0
 
 
+@njit(cache=True, inline="always")
+def advance_clock(ud, c, t, dt):
+    """The clock of a velocity memory in ``userdata``: ``ud[c]``, ``ud[c + 1]`` = the times of
+    the previous and the current call. Returns (stepped: this call is one step after the last,
+    so each memory's current values must become its previous ones (:func:`shift_memory`);
+    diff: the previous values are one step old, so finite differences of them are the last
+    step's accelerations). A call at the same time changes nothing; a jump (a reset, another
+    time) leaves no previous values."""
+    tol = 0.25 * dt
+    stepped = abs(t - ud[c + 1] - dt) < tol
+    if stepped:
+        ud[c] = ud[c + 1]
+    elif abs(t - ud[c + 1]) >= tol:
+        ud[c] = np.nan
+    ud[c + 1] = t
+    return stepped, abs(ud[c] - (t - dt)) < tol
+
+
+@njit(cache=True, inline="always")
+def shift_memory(ud, base, n):
+    """Memories ``i < n`` at ``ud[base + 12 i:]`` (previous velocity, angular velocity, then
+    the current ones): the current become the previous."""
+    for i in range(n):
+        for k in range(6):
+            ud[base + 12 * i + k] = ud[base + 12 * i + 6 + k]
+
+
+@njit(cache=True, inline="always")
+def memory_acceleration(diff, dt, gx, gy, gz, ud, u, vx, vy, vz, sx, sy, sz, wx, wy, wz, cacc,
+                        b, dx, dy, dz):
+    """(a - g, alpha) of a frame whose point at ``d`` from its tree's centre of mass moves with
+    body ``b`` at velocity ``v`` and which turns at ``s`` (``w`` is the body's own angular
+    velocity): finite differences over the last step of the memory at ``ud[u:u + 6]`` when
+    ``diff`` (what the integrator really did), else the body's explicit acceleration ``cacc``
+    (:func:`bone_accelerations`). Stores ``(v, s)`` as the memory's current values."""
+    if diff:
+        alx = (sx - ud[u + 3]) / dt
+        aly = (sy - ud[u + 4]) / dt
+        alz = (sz - ud[u + 5]) / dt
+        ax = (vx - ud[u]) / dt - gx
+        ay = (vy - ud[u + 1]) / dt - gy
+        az = (vz - ud[u + 2]) / dt - gz
+    else:
+        alx, aly, alz = cacc[6 * b], cacc[6 * b + 1], cacc[6 * b + 2]
+        ax = cacc[6 * b + 3] + aly * dz - alz * dy + wy * vz - wz * vy - gx
+        ay = cacc[6 * b + 4] + alz * dx - alx * dz + wz * vx - wx * vz - gy
+        az = cacc[6 * b + 5] + alx * dy - aly * dx + wx * vy - wy * vx - gz
+    ud[u + 6] = vx
+    ud[u + 7] = vy
+    ud[u + 8] = vz
+    ud[u + 9] = sx
+    ud[u + 10] = sy
+    ud[u + 11] = sz
+    return ax, ay, az, alx, aly, alz
+
+
 @njit(cache=True)
 def hinge_torque(hint, hflt, hs, cvel, cacc, scom, rootid, qpos, qvel, qfrc, qfrc_applied, M,
                  damping, opt, t, ud, parent, dofadr, dofnum, cdof, cdof_dot, qacc):
@@ -260,16 +316,9 @@ def hinge_torque(hint, hflt, hs, cvel, cacc, scom, rootid, qpos, qvel, qfrc, qfr
     dt = opt[0]
     gx, gy, gz = opt[1], opt[2], opt[3]
     nh = hint.size // HI
-    tol = 0.25 * dt
-    if abs(t - ud[1] - dt) < tol:  # one step on: the current velocities become the previous
-        ud[0] = ud[1]
-        for h in range(nh):
-            for k in range(6):
-                ud[2 + 12 * h + k] = ud[8 + 12 * h + k]
-    elif abs(t - ud[1]) >= tol:
-        ud[0] = np.nan
-    ud[1] = t
-    diff = abs(ud[0] - (t - dt)) < tol
+    stepped, diff = advance_clock(ud, 0, t, dt)
+    if stepped:
+        shift_memory(ud, 2, nh)
     if not diff:
         bone_accelerations(parent, dofadr, dofnum, cdof, cdof_dot, qvel, qacc, cacc)
     for h in range(nh):
@@ -284,30 +333,13 @@ def hinge_torque(hint, hflt, hs, cvel, cacc, scom, rootid, qpos, qvel, qfrc, qfr
         dy = hs[so + 5] - scom[3 * r + 1]
         dz = hs[so + 6] - scom[3 * r + 2]
         wx, wy, wz = cvel[6 * b], cvel[6 * b + 1], cvel[6 * b + 2]
-        ax, ay, az = cacc[6 * b], cacc[6 * b + 1], cacc[6 * b + 2]
         # the hinge point's velocity and (material) acceleration, less gravity
         vx = cvel[6 * b + 3] + wy * dz - wz * dy
         vy = cvel[6 * b + 4] + wz * dx - wx * dz
         vz = cvel[6 * b + 5] + wx * dy - wy * dx
-        u = 8 + 12 * h
-        if diff:
-            p = u - 6
-            ax = (wx - ud[p + 3]) / dt
-            ay = (wy - ud[p + 4]) / dt
-            az = (wz - ud[p + 5]) / dt
-            aox = (vx - ud[p]) / dt - gx
-            aoy = (vy - ud[p + 1]) / dt - gy
-            aoz = (vz - ud[p + 2]) / dt - gz
-        else:
-            aox = cacc[6 * b + 3] + ay * dz - az * dy + wy * vz - wz * vy - gx
-            aoy = cacc[6 * b + 4] + az * dx - ax * dz + wz * vx - wx * vz - gy
-            aoz = cacc[6 * b + 5] + ax * dy - ay * dx + wx * vy - wy * vx - gz
-        ud[u] = vx
-        ud[u + 1] = vy
-        ud[u + 2] = vz
-        ud[u + 3] = wx
-        ud[u + 4] = wy
-        ud[u + 5] = wz
+        aox, aoy, aoz, ax, ay, az = memory_acceleration(diff, dt, gx, gy, gz, ud, 2 + 12 * h, vx,
+                                                        vy, vz, wx, wy, wz, wx, wy, wz, cacc, b,
+                                                        dx, dy, dz)
         # in the twisted plate's frame, where its inertia is constant
         wx, wy, wz = _rot_t(hs, so + 7, wx, wy, wz)
         ax, ay, az = _rot_t(hs, so + 7, ax, ay, az)
