@@ -913,21 +913,14 @@ class ModalFeathers(CompiledProvider):
                     data.qfrc_passive, self._fint, self._ff, self._grid, self._vst, self._vx,
                     self._tri, self._scratch, self.ext, self._cl, self._cd, self.flow.params,
                     self._fluid, time_view(data), rec]
-        from flapsim.fluid.hinges import integrator_damping
+        from flapsim.fluid.hinges import hinge_arrays
 
         nm = self.K * len(self.modes)
-        i64 = [np.ascontiguousarray(a, dtype=np.int64)
-               for a in (model.body_parentid, model.body_dofadr, model.body_dofnum)]
-        opt = np.array([model.opt.timestep, *model.opt.gravity, integrator_damping(model)])
         return [data.xpos.reshape(-1), data.xmat.reshape(-1), data.cvel.reshape(-1),
                 data.subtree_com.reshape(-1), self._rootid, self._fint, self._ff, self._grid,
                 self._vst, self._vx, self._tri, self._scratch, self.ext, self._cl, self._cd,
                 self.flow.params, self._fluid, time_view(data), rec, np.zeros(nm), np.zeros(nm),
-                np.zeros(nm), self._trans, self._hint, self._hflt,
-                np.zeros(self._hint.size // HI * HS), data.qpos, data.qvel, data.qacc_warmstart,
-                data.qfrc_passive, data.qfrc_applied, data.M, model.dof_damping, *i64,
-                data.cdof.reshape(-1), data.cdof_dot.reshape(-1), np.zeros(6 * model.nbody), opt,
-                data.userdata]
+                np.zeros(nm), self._trans, *hinge_arrays(model, data, self._hint, self._hflt)]
 
     def register(self, data: mujoco.MjData) -> Registration:
         return register(self.model, data, self)

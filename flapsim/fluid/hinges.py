@@ -156,6 +156,21 @@ def integrator_damping(model: mujoco.MjModel) -> float:
     return 1.0
 
 
+def hinge_arrays(model: mujoco.MjModel, data: mujoco.MjData, hint: np.ndarray, hflt: np.ndarray
+                 ) -> list[np.ndarray]:
+    """What a kernel passes :func:`hinge_frames` and :func:`hinge_torque` for one (model,
+    data): the hinges' tables, their scratch (per registration), the MuJoCo data and model
+    arrays they read, a ``cacc`` scratch, ``opt`` (the model's own timestep, gravity and
+    implicit damping: a coarser copy, say) and ``userdata``."""
+    i64 = [np.ascontiguousarray(a, dtype=np.int64)
+           for a in (model.body_parentid, model.body_dofadr, model.body_dofnum)]
+    opt = np.array([model.opt.timestep, *model.opt.gravity, integrator_damping(model)])
+    return [hint, hflt, np.zeros(hint.size // HI * HS), data.qpos, data.qvel,
+            data.qacc_warmstart, data.qfrc_passive, data.qfrc_applied, data.M, model.dof_damping,
+            *i64, data.cdof.reshape(-1), data.cdof_dot.reshape(-1), np.zeros(6 * model.nbody), opt,
+            data.userdata]
+
+
 @njit(cache=True, inline="always")
 def _rot(m, k, x, y, z):
     """``R v`` for the row-major 3x3 ``R`` at ``m[k:k + 9]`` (no slice: no array view)."""

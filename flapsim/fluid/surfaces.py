@@ -45,6 +45,7 @@ from flapsim.fluid.hinges import (
     HF,
     HS,
     PolygonHinges,
+    hinge_arrays,
     hinge_frames,
     hinge_torque,
     hinged_point,
@@ -574,13 +575,7 @@ class SurfaceForces(CompiledProvider):
         if self._hint.size == 0:
             return [self._phinge, self._hint, self._hflt, *[np.zeros(0)] * 8,
                     *[np.zeros(0, dtype=np.int64)] * 3, *[np.zeros(0)] * 5]
-        i64 = [np.ascontiguousarray(a, dtype=np.int64)
-               for a in (model.body_parentid, model.body_dofadr, model.body_dofnum)]
-        opt = np.array([model.opt.timestep, *model.opt.gravity, integrator_damping(model)])
-        return [self._phinge, self._hint, self._hflt, np.zeros(self._hint.size // 4 * HS),
-                data.qpos, data.qvel, data.qacc_warmstart, data.qfrc_passive, data.qfrc_applied,
-                data.M, model.dof_damping, *i64, data.cdof.reshape(-1), data.cdof_dot.reshape(-1),
-                np.zeros(6 * model.nbody), opt, data.userdata]
+        return [self._phinge, *hinge_arrays(model, data, self._hint, self._hflt)]
 
     def register(self, data: mujoco.MjData, model: mujoco.MjModel | None = None) -> Registration:
         """Apply these forces whenever MuJoCo steps ``data`` (until the handle is removed);
