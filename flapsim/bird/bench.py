@@ -199,7 +199,8 @@ def run_train(args: argparse.Namespace) -> dict:
 
 
 def run_controller(args: argparse.Namespace) -> dict:
-    """``flapsim bench controller``: the learned controller's cruise in real-time factor (S0
+    """``flapsim bench controller [--feathers modal]``: the learned controller's cruise in
+    real-time factor (S0
     simulated every wingbeat, the default, ``predict="coarse"`` and ``predict="regression"``),
     what a controlled wingbeat costs against a base wingbeat (the P0 prediction, the regression
     and the flown wingbeat), and each against a bare ``mujoco.rollout`` of P0 (the floor: no controller, no
@@ -221,7 +222,8 @@ def run_controller(args: argparse.Namespace) -> dict:
 
     n = max(4, int(getattr(args, "wingbeats", None) or 20))
     db = getattr(args, "db", None)
-    dove = Dove.load()
+    feathers = getattr(args, "feathers", None) or "rigid"
+    dove = Dove.load(feathers=feathers)
     fl = DoveFlight(dove)
     try:
         ctl = load_controller(fl, db)
@@ -231,6 +233,8 @@ def run_controller(args: argparse.Namespace) -> dict:
         res = {}
         for name, c in (("learned", ctl), ("learned_coarse", coarse), ("learned_regression", reg),
                         ("base", BaseController(fl, ctl.P0))):
+            start_cruise(fl, ctl.P0)
+            fly_controlled(c, CruiseTarget(trim, altitude=10.0), 1)  # warm-up: the coarse twin
             start_cruise(fl, ctl.P0)
             f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
             res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
@@ -257,6 +261,7 @@ def run_controller(args: argparse.Namespace) -> dict:
     bare = res["bare_rollout"]["real_time_factor"]
     out = {
         "target": "controller",
+        "feathers": feathers,
         "database_samples": ctl.regressor.n,
         "method": ctl.regressor.method,
         "k": ctl.regressor.k,
@@ -269,7 +274,8 @@ def run_controller(args: argparse.Namespace) -> dict:
         "measurements": res,
     }
     r = out["over_bare_rollout"]
-    print(f"learned controller ({out['method']}, k={out['k']}, {out['database_samples']} samples): "
+    print(f"learned controller, {feathers} feathers ({out['method']}, k={out['k']}, "
+          f"{out['database_samples']} samples): "
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
     print(f"  --predict coarse: {out['real_time_factor_coarse']:.1f}x real time; --predict regression: "

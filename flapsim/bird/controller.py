@@ -927,6 +927,9 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     every ``predict_every``-th wingbeat (:class:`S0Predictor`)."""
     if predict not in PREDICT_MODES:
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
+    if predict == "coarse" and flight.modal is not None and not flight.modal.engine:
+        raise InputError("--predict coarse needs rigid feathers or modal ones integrated by the "
+                         "engine (ModalParams(integration='engine'), the default)")
     from flapsim.bird.database import load_database
 
     path = db_path or bundled_database_path(flight.dove.feathers)
@@ -957,9 +960,6 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
     elif predict == "coarse":
-        if flight.modal is not None:
-            raise InputError("--predict coarse needs rigid feathers (the modal feathers' damping is "
-                             "set for the flight's own timestep)")
         ctl.predictor = CoarsePredictor()
     return ctl
 

@@ -215,16 +215,22 @@ class DoveFlight:
         rate_hz = float(rate_hz)
         if not np.isfinite(rate_hz) or not 100.0 <= rate_hz <= 1.0e5:
             raise InputError(f"a step rate must be 100-100000 Hz, got {rate_hz}")
-        if self.modal is not None:
-            # the unresolved modes' backward-Euler damping (k dt) is built for this timestep
-            raise InputError("a coarser-stepped copy needs rigid feathers (the modal feathers' "
-                             "damping is set for the flight's own timestep)")
+        if self.modal is not None and not self.modal.engine:
+            # the mode joints' gains (their unresolved modes' k dt damping) are compiled in
+            raise InputError("a coarser-stepped copy of a modal dove needs its modes integrated "
+                             "by the engine (ModalParams(integration='engine'), the default)")
         tw = copy.copy(self)
         tw.model = copy.copy(self.model)  # mj_copyModel: the option struct is its own
         tw.model.opt.timestep = 1.0 / rate_hz
         tw.data = mujoco.MjData(tw.model)
         tw.registration = self.aero.register(tw.data, model=tw.model)
-        tw._modal_registration, tw._rollout_data, tw._twins = None, None, []
+        tw._modal_registration = None
+        if self.modal is not None:
+            # its own provider: the modes' exact step (and the unresolved ones' k dt damping)
+            # is built for the copy's timestep; geometry, flow and plucked feathers are the same
+            tw.modal = self.modal.for_model(tw.model, self.dove.modal)
+            tw._modal_registration = tw.modal.register(tw.data)
+        tw._rollout_data, tw._twins = None, []
         self._twins.append(tw)
         return tw
 

@@ -121,6 +121,58 @@ class FlightPath:
         """Distance from ``p`` to the nearest path point, m."""
         return float(np.min(np.linalg.norm(self._pts - np.asarray(p, float), axis=1)))
 
+    def curvature(self, s: float | np.ndarray) -> np.ndarray:
+        """Curvature(s) ``|r' x r''| / |r'|^3`` at arc length ``s``, 1/m."""
+        u = self._param(s)
+        d1, d2 = self._spline(u, 1), self._spline(u, 2)
+        return np.linalg.norm(np.cross(d1, d2), axis=-1) / np.linalg.norm(d1, axis=-1) ** 3
+
+    def geometry(self, step_m: float = 0.05) -> PathGeometry:
+        """The path's tightest turn and steepest climb and descent, sampled every ``step_m``
+        of arc length and at the spline's knots (a cubic spline's curvature peaks there: its
+        third derivative jumps): what a flier must manage to follow it."""
+        s = np.linspace(0.0, self.length, max(2, int(np.ceil(self.length / step_m)) + 1))
+        s = np.unique(np.concatenate([s, np.interp(self._knots, self._u, self._s)]))
+        kappa = self.curvature(s)
+        climb = np.degrees(np.arcsin(np.clip(self.tangent(s)[:, 2], -1.0, 1.0)))
+        i = int(np.argmax(kappa))
+        return PathGeometry(
+            length_m=self.length,
+            min_radius_m=float(1.0 / kappa[i]) if kappa[i] > 0 else float("inf"),
+            min_radius_at_m=float(s[i]),
+            max_climb_deg=float(max(0.0, climb.max())),
+            max_descent_deg=float(max(0.0, -climb.min())),
+        )
+
+
+@dataclass(frozen=True)
+class PathGeometry:
+    """What a path asks of a flier (:meth:`FlightPath.geometry`)."""
+
+    length_m: float
+    """Arc length, m."""
+    min_radius_m: float
+    """Smallest radius of curvature (3D: turns, pull-ups and their mix), m; inf if straight."""
+    min_radius_at_m: float
+    """Arc length where it is, m."""
+    max_climb_deg: float
+    """Steepest climb of the tangent above the horizontal, deg (0 if it never climbs)."""
+    max_descent_deg: float
+    """Steepest descent below the horizontal, deg (0 if it never descends)."""
+
+    def summary(self) -> str:
+        """One line for the terminal."""
+        r = "straight" if not np.isfinite(self.min_radius_m) else (
+            f"tightest turn radius {self.min_radius_m:.1f} m at {self.min_radius_at_m:.0f} m")
+        return (f"{self.length_m:.0f} m long, {r}, steepest climb {self.max_climb_deg:.1f} deg, "
+                f"steepest descent {self.max_descent_deg:.1f} deg")
+
+    def as_dict(self) -> dict:
+        return {"length_m": self.length_m,
+                "min_radius_m": self.min_radius_m if np.isfinite(self.min_radius_m) else None,
+                "min_radius_at_m": self.min_radius_at_m, "max_climb_deg": self.max_climb_deg,
+                "max_descent_deg": self.max_descent_deg}
+
 
 def load_path(path: str | Path) -> FlightPath:
     """A path from a CSV (header ``x,y,z``) or JSON file, with one-line errors."""

@@ -44,8 +44,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="wingbeats for 'controller' (default 20)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="'dove': rigid feathers (default) or modal ones (measured with rigid in "
-                        "the same run, for the cost ratio)")
-    add_input_arg(p, "--db", default=None, help="database for 'controller' (default: the bundled one)")
+                        "the same run, for the cost ratio); 'controller': the dove flown (and "
+                        "its bundled database)")
+    add_input_arg(p, "--db", default=None,
+                  help="database for 'controller' (default: the bundled one of --feathers)")
     p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
                    help="'eval': how the controller finds S0 (default simulate; see flapsim fly "
                         "--help)")

@@ -49,9 +49,6 @@ def check_regression_options(args: argparse.Namespace) -> None:
         raise InputError(f"--clip-request must be a share 0 <= Q < 0.5, got {q}")
     if not (math.isfinite(w) and 0.0 <= w <= 1e3):
         raise InputError(f"--state-weight must be 0..1000, got {w}")
-    if getattr(args, "predict", "simulate") == "coarse" and getattr(args, "feathers", "rigid") != "rigid":
-        raise InputError("--predict coarse needs rigid feathers (the modal feathers' damping is set "
-                         "for the flight's own timestep): use --predict simulate")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -244,6 +241,11 @@ def print_table(results: list[dict]) -> None:
                            if m.get("capture_steering_range_deg") else "") + (f"; {note}" if note else ""))
             elif "min_separation_m" in m:
                 note = f"closest birds {m['min_separation_m']:.2f} m" + (f"; {note}" if note else "")
+            elif r["scenario"] == "path" and m.get("path_geometry"):
+                g = m["path_geometry"]
+                radius = "straight" if g["min_radius_m"] is None else f"radius >= {g['min_radius_m']:.1f} m"
+                note = (f"{radius}, climbs <= {g['max_climb_deg']:.1f} deg, descents <= "
+                        f"{g['max_descent_deg']:.1f} deg" + (f"; {note}" if note else ""))
             elif "collisions" in m and r["scenario"] == "forest":
                 note = f"{m['collisions']} collisions" + (f"; {note}" if note else "")
             print(f"{r['scenario']:<16} {r['status']:<10} {_fmt(m.get('Ep_per_wingbeat')):>7} "

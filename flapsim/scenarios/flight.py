@@ -111,7 +111,7 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
                 plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0),
                 feathers=opt.feathers)
     r, files = _fly(sc, opt, task)
-    extra = {}
+    extra = {"path_geometry": path.geometry().as_dict()}
     if "capture_steering_deg" in p:
         extra["capture_steering_range_deg"] = capture_steering_range()
     return _result(r, files, **extra)

@@ -144,7 +144,7 @@ def test_eval_cli_errors_are_one_line(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path):
+def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path, capsys):
     # an S of two opposite 25 m turns, level (bank atan(49 / (9.81 * 25)) = 11 deg each)
     a = np.linspace(0, np.pi / 2, 20)
     first = np.stack([25 * np.sin(a), 25 * (1 - np.cos(a))], 1)
@@ -157,6 +157,12 @@ def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path):
     assert main(["eval", "--path", str(f), "--workers", "1", "--json", str(js)]) == 0
     r = json.loads(js.read_text())["scenarios"][0]
     assert r["status"] == "completed" and r["metrics"]["max_path_distance"] < 2.0, r
+    # what the path asks, reported: level; the arcs' 25 m, tightened to ~20 m where the
+    # spline (continuous curvature) joins the two opposite turns
+    g = r["metrics"]["path_geometry"]
+    assert g["max_climb_deg"] < 1e-6 and g["max_descent_deg"] < 1e-6
+    assert 15.0 < g["min_radius_m"] < 25.5 and 30.0 < g["min_radius_at_m"] < 50.0, g
+    assert "radius >= " in capsys.readouterr().out
 
 
 @pytest.mark.slow
