@@ -419,21 +419,27 @@ class TunnelResult:
     """Mean nose-up moment about the trunk centre, N m."""
     upstroke_area_ratio: float
     """Mean projected (xy) feather area in the upstroke / in the downstroke."""
+    roll_moment: float = 0.0
+    """Mean moment about the forward axis, N m: > 0 lifts the left wing (rolls right)."""
+    yaw_moment: float = 0.0
+    """Mean moment about the vertical, N m: > 0 turns the nose left."""
 
 
 def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: float = 0.0,
                 cycles: int = 3, table: str = FlightConfig.table,
-                ref: ReferenceWingbeat | None = None, modal: object | None = None) -> TunnelResult:
+                ref: ReferenceWingbeat | None = None, modal: object | None = None,
+                plucked: tuple[str, ...] = ()) -> TunnelResult:
     """Weld the trunk, blow ``speed`` m/s from ahead, flap wingbeat ``p`` and average the
     aerodynamic force over the last cycle (the first ones settle the feathers). ``modal``:
-    a :class:`~flapsim.bird.feather_modes.ModalParams` for modal (deformable) feathers."""
+    a :class:`~flapsim.bird.feather_modes.ModalParams` for modal (deformable) feathers;
+    ``plucked``: feathers without force polygons (:class:`DoveFlight`'s)."""
     if cycles < 2:
         raise InputError("wind_tunnel needs >= 2 cycles (the first settles the transients)")
     model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg, modal=modal),
                        is_xml=True)
     dove = Dove.from_model(model, params, modal)
     fl = DoveFlight(dove, ref or reference_wingbeat(), table, (-speed, 0.0, 0.0),
-                    use_rollout=False)
+                    use_rollout=False, plucked=tuple(plucked))
     try:
         fl.reset(FlightConfig(speed=0.0), p)
         m, d = fl.model, fl.data
@@ -444,7 +450,7 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
                 d.ctrl[:] = ctrl[k]
                 mujoco.mj_step(m, d)
         F = np.zeros(3)
-        M = 0.0
+        M = np.zeros(3)
         trunk = d.xpos[dove.trunk].copy()
         down_area, up_area = [], []
         feathers = fl.polygons.table != BODY_TABLE
@@ -455,8 +461,7 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
             mujoco.mj_step(m, d)
             f, points, _ = fl.aero_forces(d)
             F += f.sum(axis=0)
-            r = points - trunk
-            M += float(np.sum(r[:, 0] * f[:, 2] - r[:, 2] * f[:, 0]))
+            M += np.cross(points - trunk, f).sum(axis=0)
             if fl.modal is None:
                 proj = float(np.sum(areas * np.abs(fl.aero.world_normals(d)[feathers, 2])))
             else:  # the deformed triangles
@@ -465,8 +470,9 @@ def wind_tunnel(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: floa
             (down_area if k * m.opt.timestep < ds else up_area).append(proj)
         DISPATCHER.check(d)
         n = len(ctrl)
-        return TunnelResult(speed, pitch_deg, F[2] / n / weight, F[0] / n / weight, M / n,
-                            float(np.mean(up_area) / np.mean(down_area)))
+        # nose-up is about -y (x forward, z up)
+        return TunnelResult(speed, pitch_deg, F[2] / n / weight, F[0] / n / weight, -M[1] / n,
+                            float(np.mean(up_area) / np.mean(down_area)), M[0] / n, M[2] / n)
     finally:
         fl.close()
 

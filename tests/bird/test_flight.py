@@ -118,6 +118,24 @@ def test_wind_tunnel_lift_grows_with_airspeed():
     assert fast.upstroke_area_ratio < 0.95
 
 
+def test_wind_tunnel_roll_moment_swaps_sign_with_the_plucked_side():
+    # the dove is mirror-symmetric: intact, no roll or yaw moment (round-off of ~1e-2 mN m
+    # against the ~50 mN m a plucked wing gives); the left primaries plucked drop the left
+    # wing (roll < 0 about +x, x forward and z up); the same ones plucked on the right give the
+    # mirror image: the opposite roll and yaw, the same lift
+    params = DoveParams.load()
+    p = with_tail_bias(p0(), 17.0)
+    whole = wind_tunnel(params, p, 7.0, 5.0, cycles=2)
+    left = wind_tunnel(params, p, 7.0, 5.0, cycles=2, plucked=("l_p9", "l_p6", "l_p3"))
+    right = wind_tunnel(params, p, 7.0, 5.0, cycles=2, plucked=("r_p9", "r_p6", "r_p3"))
+    assert abs(whole.roll_moment) < 1e-5 and abs(whole.yaw_moment) < 1e-5
+    assert left.roll_moment < -0.02
+    assert right.roll_moment == pytest.approx(-left.roll_moment, rel=1e-6)
+    assert right.yaw_moment == pytest.approx(-left.yaw_moment, rel=1e-6)
+    assert right.lift_per_weight == pytest.approx(left.lift_per_weight, rel=1e-9)
+    assert left.lift_per_weight < whole.lift_per_weight - 0.05
+
+
 def test_fly_command_writes_json_and_trajectory(tmp_path, capsys):
     js, out = tmp_path / "s.json", tmp_path / "traj.npz"
     assert main(["fly", "--wingbeats", "2", "--json", str(js), "--out", str(out)]) == 0
