@@ -219,6 +219,7 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
     positions = [d.qpos[0:3].copy()]
     times = [float(d.time)]
     quats, steer, elev, qpos, push_log = [], [], [], [], []
+    progress_s = [float(target.s)]  # the closest path point as each wingbeat began
     v_prev = fl.com_velocity()
     status, reason = "lost", f"the path's end not reached in {n_max} wingbeats"
     lost_at = None
@@ -253,6 +254,7 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
             h1, c1 = cycle.heading_and_climb(e.com_vel)
             steer.append(np.degrees(cycle.wrap(h1 - h0)))
             elev.append(np.degrees(c1 - c0))
+            progress_s.append(float(target.s))
             v_prev = e.com_vel
             if record:
                 qpos.append(e.qpos)
@@ -294,7 +296,23 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
         "path_length_m": task.path.length, "collisions": collisions,
         "steering_range_deg": [float(np.min(steer)), float(np.max(steer))] if steer else None,
         "elevation_range_deg": [float(np.min(elev)), float(np.max(elev))] if elev else None,
+        "path_steering_range_deg": _path_steering(task.path, progress_s, positions_a),
         "real_time_factor": sim_s / wall if wall > 0 else None,
     })
     return TaskResult(status, reason, metrics, positions_a, quats_a, desired, np.array(steer),
                       np.array(elev), qpos_a, np.array(times), wall, collisions, push_log)
+
+
+def _path_steering(path, progress_s: list[float], positions: np.ndarray) -> list[float] | None:
+    """Smallest and largest turn of the path's own heading over each wingbeat's flown
+    distance, deg, from the path point the bird was closest to as that wingbeat began: what
+    the path asked where it was flown, at the bird's pace (its ``steering_range_deg`` is what
+    it did). ``progress_s[k + 1]``: the closest point as wingbeat k began."""
+    if len(progress_s) < 2 or len(positions) < 2:
+        return None
+    n = min(len(progress_s) - 1, len(positions) - 1)
+    s0 = np.asarray(progress_s[1:n + 1])
+    flown = np.linalg.norm(np.diff(positions[:n + 1], axis=0), axis=1)
+    t0, t1 = path.tangent(s0), path.tangent(s0 + flown)
+    turn = np.degrees(cycle.wrap(np.arctan2(t1[:, 1], t1[:, 0]) - np.arctan2(t0[:, 1], t0[:, 0])))
+    return [float(np.min(turn)), float(np.max(turn))]

@@ -235,7 +235,9 @@ def print_table(results: list[dict]) -> None:
                 note = push_note(m["table"])
             elif "steering_range_deg" in m and r["scenario"].startswith("sinusoid"):
                 lo, hi = m["steering_range_deg"]
+                asked = m.get("path_steering_range_deg")
                 note = (f"steering {lo:+.1f}..{hi:+.1f} deg/wingbeat"
+                        + (f" (path {asked[0]:+.1f}..{asked[1]:+.1f})" if asked else "")
                         + (f" (capture {m['capture_steering_range_deg'][0]:+.1f}.."
                            f"{m['capture_steering_range_deg'][1]:+.1f})"
                            if m.get("capture_steering_range_deg") else "") + (f"; {note}" if note else ""))

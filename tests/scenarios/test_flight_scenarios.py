@@ -270,3 +270,25 @@ def test_the_modal_dove_survives_an_8_newton_push_backwards():
     # the push really slowed it: the lowest speed over the flight is well below cruise
     v = np.linalg.norm(np.diff(r.positions, axis=0), axis=1) / np.diff(r.times)
     assert v.min() < 5.5
+
+
+def test_what_a_path_asks_per_wingbeat_is_the_arc_over_the_radius():
+    # a bird exactly on a circle of radius R, flying d per wingbeat: the path's heading turns
+    # d / R rad a wingbeat (left, +); along the reversed circle, -d / R. The spline's
+    # curvature is within 0.5 % of the circle's away from its ends (48 points a turn)
+    from flapsim.bird import paths
+    from flapsim.bird.path import FlightPath
+    from flapsim.bird.tasks import _path_steering
+
+    R, d = 5.0, 0.7
+    path = paths.inclined_circle(R, 0.0, turns=1.0)
+    s = np.arange(5.0, path.length - 6.0, d)
+    pos = path.point(s)
+    progress = [0.0, *s]  # the closest point as each wingbeat began, after the initial one
+    lo, hi = _path_steering(path, progress, pos)
+    assert lo == pytest.approx(np.degrees(d / R), rel=5e-3)
+    assert hi == pytest.approx(np.degrees(d / R), rel=5e-3)
+    rev = FlightPath(path.points[::-1])
+    s = np.arange(6.0, rev.length - 5.0, d)
+    lo, hi = _path_steering(rev, [0.0, *s], rev.point(s))
+    assert hi == pytest.approx(-np.degrees(d / R), rel=5e-3) and lo < 0
