@@ -77,6 +77,18 @@ def xvfb_display():
                 break
             time.sleep(0.05)
         assert Path(f"/tmp/.X11-unix/X{n}").exists(), "Xvfb did not start within 10 s"
+        # the socket appears before the server takes clients: under load a window opened at
+        # once got "bad X server connection"; wait until a client is answered
+        import os
+
+        env = dict(os.environ, DISPLAY=f":{n}")
+        for _ in range(100):
+            ok = subprocess.run(["xdotool", "getdisplaygeometry"], env=env, capture_output=True,
+                                timeout=10).returncode == 0
+            if ok:
+                break
+            time.sleep(0.1)
+        assert ok, "Xvfb took no client within 10 s"
         yield display
     finally:
         for proc in [*display.procs, xvfb]:

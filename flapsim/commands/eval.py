@@ -147,7 +147,10 @@ def run(args: argparse.Namespace) -> dict:
     check_regression_options(args)
     if args.bank_lead is not None and not (math.isfinite(args.bank_lead) and 0.0 <= args.bank_lead <= 1.0):
         raise InputError(f"--bank-lead must be 0..1 s (within the 1 s look-ahead), got {args.bank_lead}")
-    opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, mirror=args.mirror,
+    if args.k_dense < 0:
+        raise InputError(f"--k-dense must be 0 (off) or >= 1, got {args.k_dense}")
+    opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
+                                 mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
                                  predict=args.predict, bank_lead_s=args.bank_lead, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
@@ -359,6 +362,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     for n in sizes:
         o = copy.copy(opts)
         o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
+        o.k_dense = 0  # the paper's fixed neighbourhood: the sweep is over k itself
         o.bank_lead_s = 0.0  # the paper's path controller: the bank of the wingbeat's end
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
@@ -368,6 +372,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
             continue
         o = copy.copy(opts)
         o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
+        o.k_dense = 0
         o.bank_lead_s = 0.0
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})

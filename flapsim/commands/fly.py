@@ -17,6 +17,11 @@ HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat c
 
 def add_regression_arguments(p: argparse.ArgumentParser) -> None:
     """The learned controller's options beyond --method/--k (``fly``, ``eval``, ``view``)."""
+    p.add_argument("--k-dense", type=int, default=0, metavar="N",
+                   help="LWLR's neighbours where a request lies among densely packed samples, "
+                        "growing to --k where they are sparse (default 0: always --k, the "
+                        "paper's fixed neighbourhood; 100, 0.5%% of the bundled database and its "
+                        "mirror images, follows its figures of eight closer: see the README)")
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="the regression searches the database's samples only, not also their mirror "
                         "images (the default searches both: the dove is symmetric)")
@@ -180,7 +185,8 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
         if args.controller == "learned":
             ctl = load_controller(fl, args.db, method=args.method, k=args.k,
                                   predict=getattr(args, "predict", "simulate"), mirror=args.mirror,
-                                  clip_request=args.clip_request, state_weight=args.state_weight)
+                                  clip_request=args.clip_request, state_weight=args.state_weight,
+                                  k_dense=args.k_dense)
         else:
             ctl = BaseController(fl, with_tail_bias(p0(), cfg.tail_bias_deg))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
@@ -229,7 +235,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     predict = getattr(args, "predict", "simulate")
     r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
                  record=bool(args.video or args.out), clip_request=args.clip_request,
-                 state_weight=args.state_weight, predict=predict)
+                 state_weight=args.state_weight, predict=predict, k_dense=args.k_dense)
     m = r.metrics
     completed = r.status == "completed"
     result = {

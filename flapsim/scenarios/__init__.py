@@ -59,6 +59,9 @@ class EvalOptions:
     """Flight: controller database (None: the bundled one)."""
     method: str = "lwlr"
     k: int | None = None
+    k_dense: int = 0
+    """Flight: LWLR's neighbours among densely packed samples, growing to ``k`` among sparse
+    ones (0: always ``k``, the default)."""
     mirror: bool = True
     """Flight: the regression also searches the samples' mirror images."""
     clip_request: float = 0.02
