@@ -111,9 +111,10 @@ DEFAULT_CLIP_REQUEST = 0.02
 #: alone but changes the flight's energy and the joints' states from one wingbeat to the next.
 DEFAULT_K_SHARE = {"knn": 0.005, "lwlr": 0.02}
 
-#: A share of the samples searched for :class:`Regressor`'s ``k_dense`` (the paper's k share):
-#: ``--k-dense`` in the help and the README (an option, off by default).
-K_DENSE_SHARE = 0.005
+#: :class:`Regressor`'s ``k_dense`` by default, as a share of the samples searched (the
+#: paper's k share), per feather model: on for the rigid dove (its suite completed more on
+#: all five database draws tried, or as many), off for the modal one (fewer on three of five).
+DEFAULT_K_DENSE_SHARE = {"rigid": 0.005, "modal": 0.0}
 #: Where the neighbourhood grows from ``k_dense`` to ``k``: the request's distance to its
 #: ``k_dense``-th neighbour against these quantiles of the samples' own such distances.
 DENSE_QUANTILES = (0.10, 0.25)
@@ -947,7 +948,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
                     predict: str = "simulate", predict_every: int = 4,
                     mirror: bool = True, state_weight: float = 0.0,
                     clip_request: float = DEFAULT_CLIP_REQUEST,
-                    k_dense: int = 0) -> WingbeatController:
+                    k_dense: int | None = None) -> WingbeatController:
     """A controller over a database (default: the bundled one of ``flight``'s dove, rigid or
     modal feathers) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error.
@@ -957,9 +958,9 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     for k-NN) counts among both.
 
     ``k_dense`` > 0 (LWLR): neighbours where the request lies among densely packed samples,
-    growing to ``k`` where they are sparse (:class:`Regressor`); 0 (default): always ``k``,
-    the paper's fixed neighbourhood. It helped the bundled database and not four other draws
-    (README, "A neighbourhood that follows the samples' density"), so it is off.
+    growing to ``k`` where they are sparse (:class:`Regressor`); 0: always ``k``, the paper's
+    fixed neighbourhood; None (default): :data:`DEFAULT_K_DENSE_SHARE` of the samples searched
+    for LWLR (README, "A neighbourhood that follows the samples' density"), 0 for k-NN.
 
     ``state_weight`` > 0: the neighbours are chosen by dS and by the wingbeat's start state
     (the samples' S field; :class:`Regressor`'s ``context_weight``); 0 (default): by dS only,
@@ -1000,7 +1001,10 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     if mirror:
         dS, dP = mirror_samples(dS, dP, P0)
         S = None if S is None else np.vstack([S, S * MIRROR_STATE])
-    if k_dense < 0 or (k_dense and method != "lwlr"):
+    if k_dense is None:
+        share = DEFAULT_K_DENSE_SHARE.get(flight.dove.feathers, 0.0) if method == "lwlr" else 0.0
+        k_dense = default_k(len(dS), share) if share > 0 else 0
+    elif k_dense < 0 or (k_dense and method != "lwlr"):
         raise InputError(f"--k-dense must be 0 (off) or >= 1 with --method lwlr, got {k_dense}")
     kk = min(len(dS), k if k is not None else default_k(len(dS), DEFAULT_K_SHARE[method]))
     reg = Regressor(dS, dP, k=k, weights=weights, method=method, context=S, context_weight=state_weight,

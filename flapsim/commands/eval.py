@@ -147,7 +147,7 @@ def run(args: argparse.Namespace) -> dict:
     check_regression_options(args)
     if args.bank_lead is not None and not (math.isfinite(args.bank_lead) and 0.0 <= args.bank_lead <= 1.0):
         raise InputError(f"--bank-lead must be 0..1 s (within the 1 s look-ahead), got {args.bank_lead}")
-    if args.k_dense < 0:
+    if args.k_dense is not None and args.k_dense < 0:
         raise InputError(f"--k-dense must be 0 (off) or >= 1, got {args.k_dense}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
                                  mirror=args.mirror,

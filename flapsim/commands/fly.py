@@ -17,11 +17,11 @@ HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat c
 
 def add_regression_arguments(p: argparse.ArgumentParser) -> None:
     """The learned controller's options beyond --method/--k (``fly``, ``eval``, ``view``)."""
-    p.add_argument("--k-dense", type=int, default=0, metavar="N",
+    p.add_argument("--k-dense", type=int, default=None, metavar="N",
                    help="LWLR's neighbours where a request lies among densely packed samples, "
-                        "growing to --k where they are sparse (default 0: always --k, the "
-                        "paper's fixed neighbourhood; 100, 0.5%% of the bundled database and its "
-                        "mirror images, follows its figures of eight closer: see the README)")
+                        "growing to --k where they are sparse (default: 0.5%% of the samples "
+                        "searched for rigid feathers, off for modal ones; 0: always --k, the "
+                        "paper's fixed neighbourhood; see the README)")
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="the regression searches the database's samples only, not also their mirror "
                         "images (the default searches both: the dove is symmetric)")

@@ -59,9 +59,10 @@ class EvalOptions:
     """Flight: controller database (None: the bundled one)."""
     method: str = "lwlr"
     k: int | None = None
-    k_dense: int = 0
+    k_dense: int | None = None
     """Flight: LWLR's neighbours among densely packed samples, growing to ``k`` among sparse
-    ones (0: always ``k``, the default)."""
+    ones (None: the dove's default, :data:`flapsim.bird.controller.DEFAULT_K_DENSE_SHARE`;
+    0: always ``k``)."""
     mirror: bool = True
     """Flight: the regression also searches the samples' mirror images."""
     clip_request: float = 0.02

@@ -4,7 +4,7 @@ where a request lies among densely packed samples, k where they are sparse."""
 import numpy as np
 import pytest
 
-from flapsim.bird.controller import DENSE_QUANTILES, Regressor, bundled_database_path, load_controller
+from flapsim.bird.controller import DENSE_QUANTILES, Regressor, load_controller
 from flapsim.bird.flight import DoveFlight
 from flapsim.bird.model import Dove
 from flapsim.errors import InputError
@@ -71,16 +71,24 @@ def test_bad_k_dense_is_a_one_line_error(cloud):
         assert "\n" not in str(e.value)
 
 
-def test_the_controller_takes_it_as_an_option_off_by_default():
+def test_the_default_is_half_a_percent_for_rigid_feathers_and_off_for_modal():
     fl = DoveFlight(Dove.load())
     try:
-        assert load_controller(fl).regressor.dense_radii is None  # the paper's fixed k
-        ctl = load_controller(fl, bundled_database_path(), k_dense=100)
-        assert ctl.regressor.k_dense == 100 and ctl.regressor.k == round(0.02 * ctl.regressor.n)
+        ctl = load_controller(fl)
+        n = ctl.regressor.n  # the samples and their mirror images
+        assert ctl.regressor.k_dense == round(0.005 * n) and ctl.regressor.k == round(0.02 * n)
         lo, hi = ctl.regressor.dense_radii
         assert 0 < lo < hi
+        assert load_controller(fl, k_dense=0).regressor.dense_radii is None  # the paper's fixed k
+        assert load_controller(fl, method="knn").regressor.k_dense == 0
         with pytest.raises(InputError, match="k-dense"):
             load_controller(fl, method="knn", k_dense=100)
+    finally:
+        fl.close()
+    fl = DoveFlight(Dove.load(feathers="modal"))
+    try:
+        assert load_controller(fl).regressor.dense_radii is None
+        assert load_controller(fl, k_dense=100).regressor.k_dense == 100
     finally:
         fl.close()
 
