@@ -257,7 +257,7 @@ def test_the_modal_dove_survives_an_8_newton_push_backwards():
     8 N for 0.1 s (0.8 N s: 4.7 m/s taken from its 7) on the push scenarios' 60 m path,
     survives by their
     criterion: within the 10 m tube, the path's end reached, back within 1.5 m of it. (The
-    rigid dove's bundled database slows and does not reach the end in time: README.)"""
+    rigid dove's bundled database does not survive it: README.)"""
     from flapsim.bird import paths
     from flapsim.bird.tasks import Task, fly_task
     from flapsim.scenarios.flight import PUSH_BACK_M, PUSH_TUBE_M
