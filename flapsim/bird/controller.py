@@ -120,6 +120,12 @@ DEFAULT_K_DENSE_SHARE = {"rigid": 0.005, "modal": 0.0}
 DENSE_QUANTILES = (0.10, 0.25)
 
 
+def resolve_k(n: int, k: int | None, method: str) -> int:
+    """The neighbours a :class:`Regressor` over ``n`` samples uses: ``k``, or by default
+    :data:`DEFAULT_K_SHARE` of ``method``; at most ``n``."""
+    return min(n, k if k is not None else default_k(n, DEFAULT_K_SHARE[method]))
+
+
 def default_k(n: int, fraction: float = DEFAULT_K_SHARE["knn"]) -> int:
     """k as ``fraction`` of ``n`` samples (at least 1); by default the paper's best k-NN share,
     0.5 % (:data:`DEFAULT_K_SHARE` has each method's)."""
@@ -190,7 +196,7 @@ class Regressor:
                 wc = wc / np.maximum(C.std(axis=0), 1e-12) ** 2
             self.context, self.sqrt_wc = C, np.sqrt(wc)
             X = np.hstack([X, C * self.sqrt_wc])
-        self.k = min(len(dS), k if k is not None else default_k(len(dS), DEFAULT_K_SHARE[method]))
+        self.k = resolve_k(len(dS), k, method)
         if self.k < 1:
             raise InputError(f"k must be >= 1, got {k}")
         self.method = method
@@ -1003,12 +1009,12 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
         S = None if S is None else np.vstack([S, S * MIRROR_STATE])
     if k_dense is None:
         share = DEFAULT_K_DENSE_SHARE.get(flight.dove.feathers, 0.0) if method == "lwlr" else 0.0
-        k_dense = default_k(len(dS), share) if share > 0 else 0
+        # the default never exceeds k (a user's smaller --k); an explicit value is checked
+        k_dense = min(default_k(len(dS), share), resolve_k(len(dS), k, method)) if share > 0 else 0
     elif k_dense < 0 or (k_dense and method != "lwlr"):
         raise InputError(f"--k-dense must be 0 (off) or >= 1 with --method lwlr, got {k_dense}")
-    kk = min(len(dS), k if k is not None else default_k(len(dS), DEFAULT_K_SHARE[method]))
     reg = Regressor(dS, dP, k=k, weights=weights, method=method, context=S, context_weight=state_weight,
-                    clip_request=clip_request, k_dense=min(int(k_dense), kk))
+                    clip_request=clip_request, k_dense=int(k_dense))
     ctl = WingbeatController(flight, reg, P0)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)

@@ -228,7 +228,7 @@ class DoveFlight:
         if self.modal is not None:
             # its own provider: the modes' exact step (and the unresolved ones' k dt damping)
             # is built for the copy's timestep; geometry, flow and plucked feathers are the same
-            tw.modal = self.modal.for_model(tw.model, self.dove.modal)
+            tw.modal = self.modal.for_model(tw.model)
             tw._modal_registration = tw.modal.register(tw.data)
         tw._rollout_data, tw._twins = None, []
         self._twins.append(tw)

@@ -903,13 +903,13 @@ class ModalFeathers(CompiledProvider):
         self.qadr = self._fint.reshape(-1, FI)[:, 1].copy()
         self.dadr = self._fint.reshape(-1, FI)[:, 2].copy()
 
-    def for_model(self, model: mujoco.MjModel, params: ModalParams | None = None) -> ModalFeathers:
-        """The same feathers (modes, table, flow, plucked feathers, hinges) on another
-        compilation of the same dove, such as a copy with a coarser timestep: the modes' step
-        is built for that model's timestep."""
-        table, density, plucked, hinges, own = self._built_with
+    def for_model(self, model: mujoco.MjModel) -> ModalFeathers:
+        """The same feathers (modes, table, flow, plucked feathers, hinges, parameters) on
+        another compilation of the same dove, such as a copy with a coarser timestep: the
+        modes' step is built for that model's timestep."""
+        table, density, plucked, hinges, params = self._built_with
         return ModalFeathers(model, self.modes, table, density, self.flow, name=self.name,
-                             plucked=plucked, hinges=hinges, params=params or own)
+                             plucked=plucked, hinges=hinges, params=params)
 
     QFRC_ARG_ENGINE = 29
     """Index of ``qfrc_passive`` in the engine kernel's arrays (:meth:`arrays`)."""

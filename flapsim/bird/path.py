@@ -160,13 +160,6 @@ class PathGeometry:
     max_descent_deg: float
     """Steepest descent below the horizontal, deg (0 if it never descends)."""
 
-    def summary(self) -> str:
-        """One line for the terminal."""
-        r = "straight" if not np.isfinite(self.min_radius_m) else (
-            f"tightest turn radius {self.min_radius_m:.1f} m at {self.min_radius_at_m:.0f} m")
-        return (f"{self.length_m:.0f} m long, {r}, steepest climb {self.max_climb_deg:.1f} deg, "
-                f"steepest descent {self.max_descent_deg:.1f} deg")
-
     def as_dict(self) -> dict:
         return {"length_m": self.length_m,
                 "min_radius_m": self.min_radius_m if np.isfinite(self.min_radius_m) else None,

@@ -41,7 +41,7 @@ def push_note(table: list[dict]) -> str:
 
 
 def check_regression_options(args: argparse.Namespace) -> None:
-    """--clip-request, --state-weight and --predict (fly, eval, view): one-line errors."""
+    """--clip-request, --state-weight and --k-dense (fly, eval, view): one-line errors."""
     import math
 
     q, w = args.clip_request, args.state_weight
@@ -49,6 +49,9 @@ def check_regression_options(args: argparse.Namespace) -> None:
         raise InputError(f"--clip-request must be a share 0 <= Q < 0.5, got {q}")
     if not (math.isfinite(w) and 0.0 <= w <= 1e3):
         raise InputError(f"--state-weight must be 0..1000, got {w}")
+    kd = getattr(args, "k_dense", None)
+    if kd is not None and kd < 0:
+        raise InputError(f"--k-dense must be 0 (off) or >= 1, got {kd}")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -147,8 +150,6 @@ def run(args: argparse.Namespace) -> dict:
     check_regression_options(args)
     if args.bank_lead is not None and not (math.isfinite(args.bank_lead) and 0.0 <= args.bank_lead <= 1.0):
         raise InputError(f"--bank-lead must be 0..1 s (within the 1 s look-ahead), got {args.bank_lead}")
-    if args.k_dense is not None and args.k_dense < 0:
-        raise InputError(f"--k-dense must be 0 (off) or >= 1, got {args.k_dense}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
                                  mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,

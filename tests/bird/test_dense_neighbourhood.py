@@ -83,6 +83,10 @@ def test_the_default_is_half_a_percent_for_rigid_feathers_and_off_for_modal():
         assert load_controller(fl, method="knn").regressor.k_dense == 0
         with pytest.raises(InputError, match="k-dense"):
             load_controller(fl, method="knn", k_dense=100)
+        # the default stays within a smaller k; an explicit k_dense above k is an error
+        assert load_controller(fl, k=50).regressor.k_dense == 50
+        with pytest.raises(InputError, match="k_dense must be 1..k"):
+            load_controller(fl, k=50, k_dense=100)
     finally:
         fl.close()
     fl = DoveFlight(Dove.load(feathers="modal"))
@@ -93,9 +97,11 @@ def test_the_default_is_half_a_percent_for_rigid_feathers_and_off_for_modal():
         fl.close()
 
 
-def test_eval_refuses_a_negative_k_dense(capsys):
+@pytest.mark.parametrize("command", [["eval", "--scenario", "figure8-level"],
+                                     ["fly", "--controller", "learned"]])
+def test_the_cli_refuses_a_negative_k_dense(capsys, command):
     from flapsim.cli import main
 
-    assert main(["eval", "--scenario", "figure8-level", "--k-dense", "-1"]) == 2
+    assert main([*command, "--k-dense", "-1"]) == 2
     err = capsys.readouterr().err.strip()
     assert "--k-dense" in err and "\n" not in err
