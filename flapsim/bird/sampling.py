@@ -273,6 +273,14 @@ class SamplingConfig(StoredConfig):
     feathers: str = "rigid"
     """``rigid`` or ``modal`` (bending) feathers: the dove the samples are flown with (a
     database is bound to its model)."""
+    centre_flap_scale: float = 1.0
+    """The sampled wingbeats (pre-simulation and sample) are drawn around P0 with both
+    shoulder-flap strokes scaled by this, instead of around P0 itself (1: the paper's)."""
+    centre_timewarp: float = 1.0
+    """... and the cycle's duration multiplied by this (< 1: a faster beat). The wingbeats a
+    tight turn or a steep climb needs lie beyond the capture's ellipses around P0
+    (``scripts/dove_turn_limit.py``); P0 and the samples' dP stay P0-relative, so such a
+    database merges with one sampled around P0."""
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -280,6 +288,9 @@ class SamplingConfig(StoredConfig):
             del d["feathers"]  # rigid databases keep the configuration they always had
         if d["twist_bias_deg"] == 0.0:
             del d["twist_bias_deg"]  # likewise
+        for k in ("centre_flap_scale", "centre_timewarp"):
+            if d[k] == 1.0:
+                del d[k]  # likewise
         return d
 
     def validate(self) -> None:
@@ -294,12 +305,16 @@ class SamplingConfig(StoredConfig):
             if not np.isfinite(v) or v < 0:
                 raise InputError(f"{name} must be a finite non-negative number, got {v}")
         if not (1.0 <= self.cruise_speed <= 20.0):
-            raise InputError(f"cruise speed must be 1..20 m/s, got {self.cruise_speed}")
+            raise InputError(f"--pre-speed (the cruise speed) must be 1..20 m/s, got {self.cruise_speed}")
         if not (np.isfinite(self.tail_bias_deg) and abs(self.tail_bias_deg) <= 40.0):
             raise InputError(f"--tail-bias-deg must be within -40..40 (the tail's range), got "
                              f"{self.tail_bias_deg}")
         if not (np.isfinite(self.twist_bias_deg) and abs(self.twist_bias_deg) <= 30.0):
             raise InputError(f"--twist-bias-deg must be within -30..30, got {self.twist_bias_deg}")
+        if not (np.isfinite(self.centre_flap_scale) and 0.5 <= self.centre_flap_scale <= 2.0):
+            raise InputError(f"--centre-flap-scale must be within 0.5..2, got {self.centre_flap_scale}")
+        if not (np.isfinite(self.centre_timewarp) and 0.5 <= self.centre_timewarp <= 2.0):
+            raise InputError(f"--centre-timewarp must be within 0.5..2, got {self.centre_timewarp}")
 
 
 def sample_fields(S: np.ndarray, dP: np.ndarray, e0: cycle.CycleEnd, e1: cycle.CycleEnd
@@ -372,6 +387,7 @@ class SampleWorker:
         self.flight = DoveFlight(self.dove, self.ref, config.table)
         self.lo, self.hi = cycle.model_dof_ranges(self.flight)
         self.P0 = with_twist_bias(with_tail_bias(p0(), config.tail_bias_deg), config.twist_bias_deg)
+        self.centre = sampling_centre(self.P0, config) - self.P0
         self.manifold = None
         if config.extrapolate > 0:
             from flapsim.bird.discovery import Manifold
@@ -424,6 +440,7 @@ class SampleWorker:
             dP = self.manifold.draw_beyond(rng, self.config.extrapolate_scale)
         else:
             dP, _ = self.ellipses.draw(rng, self.config.sigma)
+            dP = dP + self.centre
         if dP[-1] <= -0.5 or not in_ranges(self.ref, self.P0 + dP, self.lo, self.hi):
             return None
         return dP
@@ -448,6 +465,18 @@ class SampleWorker:
 
     def run_chunk(self, start: int, stop: int) -> ChunkResult:
         return collect_chunk(self.sample, start, stop)
+
+
+def sampling_centre(P0: np.ndarray, config: SamplingConfig) -> np.ndarray:
+    """The wingbeat phase 1 draws around: P0 with both shoulder-flap scales multiplied by
+    ``centre_flap_scale`` and the timewarp by ``centre_timewarp``."""
+    from flapsim.bird.model import DOF_NAMES
+
+    P = np.array(P0, dtype=float)
+    for side in "lr":
+        P[2 * DOF_NAMES.index(f"{side}_shoulder_flap")] *= config.centre_flap_scale
+    P[-1] *= config.centre_timewarp
+    return P
 
 
 #: Largest excursion beyond a joint range a simulated sample may make, rad: MuJoCo's limits

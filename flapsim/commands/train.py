@@ -58,6 +58,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pre-angvel", type=float, default=None, metavar="DEG_S",
                    help="phase 1: pre-state angular velocity within +-this per body axis, deg/s "
                         "(default 4, the paper's)")
+    p.add_argument("--pre-speed", type=float, default=None, metavar="M_S",
+                   help="phase 1: the cruise speed pre-states are drawn around, m/s (default 7, "
+                        "the paper's)")
+    p.add_argument("--centre-flap-scale", type=float, default=None, metavar="S",
+                   help="phase 1: draw the wingbeats around P0 with both shoulder-flap strokes "
+                        "scaled by S (default 1: around P0)")
+    p.add_argument("--centre-timewarp", type=float, default=None, metavar="W",
+                   help="phase 1: ... and the cycle's duration times W (< 1: a faster beat; "
+                        "default 1). See scripts/dove_turn_limit.py for the wingbeats tight turns need")
     p.add_argument("--merge", nargs="+", default=None, metavar="DB",
                    help="instead of training: write the samples of these finished databases (of "
                         "the same dove and reference wingbeat) into one database --out, with "
@@ -135,12 +144,14 @@ def validate(args: argparse.Namespace) -> None:
                         ("--pre-roll-deg", args.pre_roll_deg, 80),
                         ("--pre-velocity", getattr(args, "pre_velocity", None), 10),
                         ("--pre-angvel", getattr(args, "pre_angvel", None), 720)):
+        # (--pre-speed, --centre-flap-scale and --centre-timewarp: SamplingConfig.validate)
         if v is not None and not (math.isfinite(v) and 0 <= v <= hi):
             raise InputError(f"{flag} must be 0..{hi}, got {v}")
-    if args.phase == 2 and (getattr(args, "pre_velocity", None) is not None
-                            or getattr(args, "pre_angvel", None) is not None):
-        raise InputError("--pre-velocity and --pre-angvel are for phase 1; phase 2 keeps its --from "
-                         "database's pre-states")
+    if args.phase == 2 and any(getattr(args, k, None) is not None for k in (
+            "pre_velocity", "pre_angvel", "pre_speed", "centre_flap_scale", "centre_timewarp")):
+        raise InputError("--pre-velocity, --pre-angvel, --pre-speed, --centre-flap-scale and "
+                         "--centre-timewarp are for phase 1; phase 2 keeps its --from database's "
+                         "pre-states and samples around its discovered wingbeats")
     if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
         raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
     if args.phase == 2 and (getattr(args, "table", None) or getattr(args, "tail_bias_deg", None) is not None
@@ -177,6 +188,10 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
         kwargs["linvel"] = args.pre_velocity
     if getattr(args, "pre_angvel", None) is not None:
         kwargs["angvel_deg_s"] = args.pre_angvel
+    for arg, key in (("pre_speed", "cruise_speed"), ("centre_flap_scale", "centre_flap_scale"),
+                     ("centre_timewarp", "centre_timewarp")):
+        if getattr(args, arg, None) is not None:
+            kwargs[key] = float(getattr(args, arg))
     if getattr(args, "feathers", "rigid") != "rigid":
         kwargs["feathers"] = args.feathers
     if getattr(args, "table", None):
@@ -262,6 +277,8 @@ _NOT_FOR_MERGE = (("samples", None, "--samples"), ("phase", 1, "--phase"), ("sig
                   ("from_db", None, "--from"), ("discovery", None, "--discovery"),
                   ("pre_pitch_deg", None, "--pre-pitch-deg"), ("pre_roll_deg", None, "--pre-roll-deg"),
                   ("pre_velocity", None, "--pre-velocity"), ("pre_angvel", None, "--pre-angvel"),
+                  ("pre_speed", None, "--pre-speed"), ("centre_flap_scale", None, "--centre-flap-scale"),
+                  ("centre_timewarp", None, "--centre-timewarp"),
                   ("chunk_size", None, "--chunk-size"), ("feathers", "rigid", "--feathers"),
                   ("float32", False, "--float32"), ("table", None, "--table"),
                   ("tail_bias_deg", None, "--tail-bias-deg"), ("twist_bias_deg", None, "--twist-bias-deg"))

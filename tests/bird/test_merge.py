@@ -100,6 +100,12 @@ def test_cli_merge_writes_one_database_and_json(capsys, tmp_path):
     (["--samples", "10", "--pre-velocity", "nan"], "--pre-velocity must be 0..10"),
     (["--samples", "10", "--pre-angvel", "1000"], "--pre-angvel must be 0..720"),
     (["--pre-angvel", "10"], "--samples N is required"),
+    (["--samples", "10", "--pre-speed", "0.5"], "--pre-speed (the cruise speed) must be 1..20"),
+    (["--samples", "10", "--centre-timewarp", "0"], "--centre-timewarp must be within 0.5..2"),
+    (["--samples", "10", "--centre-flap-scale", "nan"], "--centre-flap-scale must be within 0.5..2"),
+    (["--samples", "10", "--phase", "2", "--from", "{tmp}/a.db", "--centre-timewarp", "0.9"],
+     "are for phase 1"),
+    (["--merge", "{tmp}/a.db", "{tmp}/b.db", "--pre-speed", "5"], "--pre-speed is for training"),
 ])
 def test_cli_merge_and_pre_state_bad_arguments(capsys, tmp_path, args, fragment):
     _db(tmp_path / "a.db", 3, 1)
@@ -144,3 +150,50 @@ def test_pre_state_ranges_reach_the_sampler_and_its_provenance():
     # (probability of missing it on one axis 0.75^60 ~ 3e-8)
     assert v.max() <= 4.0 + 1e-9 and np.all(v.max(axis=0) > 3.0)
     assert om.max() <= 60.0 + 1e-9 and np.all(om.max(axis=0) > 45.0)
+
+
+def test_sampling_centre_and_pre_speed_reach_the_sampler():
+    """--centre-flap-scale / --centre-timewarp move every drawn wingbeat by the same offset
+    (the same random draw otherwise: sample i depends on (seed, i) alone), and --pre-speed
+    moves the pre-states' body velocity; defaults leave the stored configuration as it was
+    (the bundled database's has none of these keys)."""
+    import argparse
+
+    from flapsim.bird.model import DOF_NAMES
+    from flapsim.bird.sampling import SampleWorker, SamplingConfig
+    from flapsim.commands.train import phase1
+
+    d0 = SamplingConfig(seed=3, pitch_deg=10.0, roll_deg=10.0).to_dict()
+    assert not {"centre_flap_scale", "centre_timewarp"} & set(d0) and d0["cruise_speed"] == 7.0
+    args = argparse.Namespace(seed=3, sigma=None, pre_pitch_deg=10.0, pre_roll_deg=10.0,
+                              pre_speed=5.5, centre_flap_scale=1.1, centre_timewarp=0.9,
+                              feathers="rigid")
+    cfg, _ = phase1(args)
+    d = cfg.to_dict()
+    assert (d["cruise_speed"], d["centre_flap_scale"], d["centre_timewarp"]) == (5.5, 1.1, 0.9)
+    plain, moved = SampleWorker(SamplingConfig(**d0)), SampleWorker(cfg)
+    try:
+        offsets = []
+        for i in range(30):
+            a = plain.ellipses.draw(np.random.default_rng([3, i]), plain.config.sigma)[0]
+            b = moved.draw_wingbeat(np.random.default_rng([3, i]))
+            if b is not None:
+                offsets.append(b - a)
+        # P0's flap scales are 1 and its timewarp 1: the centre is +0.1 on both flap scales
+        # and -0.1 on the timewarp, nothing else
+        expect = np.zeros(len(plain.P0))
+        for side in "lr":
+            expect[2 * DOF_NAMES.index(f"{side}_shoulder_flap")] = 0.1
+        expect[-1] = -0.1
+        assert len(offsets) >= 10
+        np.testing.assert_allclose(offsets, np.tile(expect, (len(offsets), 1)), atol=1e-12)
+        import mujoco
+
+        moved.pre_state(np.random.default_rng([3, 0]))
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, moved.flight.data.qpos[3:7])
+        v = R.reshape(3, 3).T @ moved.flight.data.qvel[0:3]
+        assert abs(v[0] - 5.5) <= 0.3 + 1e-9  # the paper's +-0.3 m/s around the new cruise
+    finally:
+        plain.close()
+        moved.close()
