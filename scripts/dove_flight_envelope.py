@@ -28,6 +28,7 @@ def main() -> None:
     ap.add_argument("--db", default=None)
     ap.add_argument("--radii", default="8,10,12,15,20")
     ap.add_argument("--climbs", default="1,2,3,5")
+    ap.add_argument("--speed", type=float, default=7.0, help="flight speed asked, m/s (default 7)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                     help="the dove (and, without --db, its bundled database)")
@@ -37,10 +38,10 @@ def main() -> None:
     cases += [("climb", float(c)) for c in a.climbs.split(",")]
     for kind, x in cases:
         path = inclined_circle(radius_m=x, turns=1.0) if kind == "circle" else climb(x)
-        r = fly_task(Task(path, feathers=a.feathers), a.db)
+        r = fly_task(Task(path, speed=a.speed, feathers=a.feathers), a.db)
         m = r.metrics
-        bank = np.degrees(np.arctan(49.0 / (9.81 * x))) if kind == "circle" else 0.0
-        row = {"kind": kind, "value": x, "bank_needed_deg": bank, "status": r.status,
+        bank = np.degrees(np.arctan(a.speed ** 2 / (9.81 * x))) if kind == "circle" else 0.0
+        row = {"kind": kind, "value": x, "speed": a.speed, "bank_needed_deg": bank, "status": r.status,
                "reason": r.reason, "max_path_distance": m.get("max_path_distance"),
                "Ef_per_wingbeat": m.get("Ef_per_wingbeat"), "progress_m": m["progress_m"],
                "length_m": path.length}

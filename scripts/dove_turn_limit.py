@@ -3,7 +3,9 @@ wingbeats (shoulder-flap scale, beat rate, shoulder twist) around the reference 
 each kept only if the dove flies it within its joint ranges (the database's acceptance
 rule), flown in the fixed-trunk tunnel at a grid of pitches and speeds
 (:mod:`flapsim.bird.limits`). Prints, per speed, the largest load factor held at constant
-speed, its turn radius and the steepest climb, and how often the wingbeats were too wide.
+speed, its turn radius (with that wingbeat's joint-range excess and its untrimmed pitch
+moment: moment balance is not asked) and the steepest climb, and how many wingbeats stayed
+within their ranges.
 
     PYTHONPATH=. python scripts/dove_turn_limit.py [--workers 2] [--json limits.json]
 """
@@ -66,7 +68,7 @@ def main() -> None:
 def _report(best: dict, n_cands: int, speeds: list[float]) -> None:
     print(f"held with thrust - drag >= {best['thrust_floor']:+.2f} of the weight:")
     print(f"{'speed':>6} {'in range':>9} {'max n held':>11} {'turn r':>8} "
-          f"{'wingbeat (flap, w, twist, pitch)':>34} {'climb':>7}")
+          f"{'wingbeat (flap, w, twist, pitch)':>34} {'excess':>7} {'moment':>8} {'climb':>7}")
     for r in best["per_speed"]:
         tw = r["turn_wingbeat"]
         what = (f"{tw['flap_scale']:.2f}, {tw['timewarp']:.2f}, {tw['twist_deg']:+.0f}, "
@@ -74,8 +76,10 @@ def _report(best: dict, n_cands: int, speeds: list[float]) -> None:
         n = f"{r['max_load_factor']:.2f}" if r["max_load_factor"] else "-"
         rad = f"{r['tightest_turn_m']:.1f} m" if r["tightest_turn_m"] else "-"
         climb = f"{r['steepest_climb_deg']:+.1f}" if r["steepest_climb_deg"] is not None else "-"
+        ex = f"{tw['range_excess_deg']:.1f} deg" if tw else "-"
+        mo = f"{tw['pitch_moment'] * 1e3:+.0f} mN m" if tw else "-"
         print(f"{r['speed']:>6.1f} {r['wingbeats_in_range']:>5}/{n_cands:<3} {n:>11} {rad:>8} "
-              f"{what:>34} {climb:>7}")
+              f"{what:>34} {ex:>7} {mo:>8} {climb:>7}")
     if best["tightest_turn_m"]:
         print(f"tightest sustained level turn: {best['tightest_turn_m']:.1f} m at "
               f"{best['tightest_turn_speed']:g} m/s; a 3 m turn needs "

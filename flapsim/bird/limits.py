@@ -89,6 +89,9 @@ class TunnelPoint:
     thrust_per_weight: float
     range_excess_deg: float
     """The wingbeat's largest excursion past a joint range in free flight at this speed."""
+    pitch_moment: float = float("nan")
+    """Cycle-mean nose-up moment about the trunk centre, N m: a held turn needs it trimmed
+    as well (by the tail or the stroke), which the search does not ask."""
 
 
 def free_flight_range_excess(fl, P: np.ndarray, speed: float) -> float:
@@ -127,12 +130,13 @@ def search(candidates: list[Candidate], speeds: list[float], pitches_deg: list[f
                 excess = free_flight_range_excess(fl, P, v)
                 for pitch in pitches_deg:
                     if excess > RANGE_TOLERANCE:
-                        lift = thrust = float("nan")
+                        lift = thrust = moment = float("nan")
                     else:
                         r = wind_tunnel(params, P, v, pitch, ref=ref)
                         lift, thrust = float(r.lift_per_weight), float(r.thrust_per_weight)
+                        moment = float(r.pitch_moment)
                     out.append(TunnelPoint(v, pitch, c.flap_scale, c.timewarp, c.twist_deg, lift,
-                                           thrust, float(np.degrees(excess))))
+                                           thrust, float(np.degrees(excess)), moment))
                     if progress is not None:
                         progress(1)
     finally:
