@@ -2,7 +2,8 @@
 climbs of growing angle, each flown once with the bundled database (or --db), judged as
 ``flapsim eval`` judges (lost = farther than 3 m from the path).
 
-    PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--feathers modal] [--json out.json]
+    PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--feathers modal] [--speed V]
+        [--aoa-per-g DEG] [--json out.json]
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ def main() -> None:
     ap.add_argument("--radii", default="8,10,12,15,20")
     ap.add_argument("--climbs", default="1,2,3,5")
     ap.add_argument("--speed", type=float, default=7.0, help="flight speed asked, m/s (default 7)")
+    ap.add_argument("--aoa-per-g", type=float, default=None, metavar="DEG",
+                    help="the path target's extra angle of attack per g (default: its own, 0)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                     help="the dove (and, without --db, its bundled database)")
@@ -38,7 +41,7 @@ def main() -> None:
     cases += [("climb", float(c)) for c in a.climbs.split(",")]
     for kind, x in cases:
         path = inclined_circle(radius_m=x, turns=1.0) if kind == "circle" else climb(x)
-        r = fly_task(Task(path, speed=a.speed, feathers=a.feathers), a.db)
+        r = fly_task(Task(path, speed=a.speed, feathers=a.feathers, aoa_per_g_deg=a.aoa_per_g), a.db)
         m = r.metrics
         bank = np.degrees(np.arctan(a.speed ** 2 / (9.81 * x))) if kind == "circle" else 0.0
         row = {"kind": kind, "value": x, "speed": a.speed, "bank_needed_deg": bank, "status": r.status,

@@ -343,7 +343,7 @@ def trim_of_base_flight(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig | None
 
 def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_rate: float,
                  S_now: np.ndarray | None = None, settle_s: float = 0.2,
-                 wind: np.ndarray | None = None) -> np.ndarray:
+                 wind: np.ndarray | None = None, aoa_per_g: float = 0.0) -> np.ndarray:
     """S at the end of a wingbeat flying at ``speed`` along (``heading``, ``climb``) and
     turning at ``turn_rate`` (rad/s, + left) in a coordinated turn: banked by
     atan(v omega / g) toward the inside, nose ``trim.aoa`` above the flight path.
@@ -355,7 +355,14 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
     The angular velocity asked is the trim's, plus the turn rate, plus the rates that would
     take the pitch and roll of ``S_now`` (where the reference wingbeat would leave the bird)
     to the target's in ``settle_s`` seconds: without them the target asks for an
-    orientation while holding the rates that keep it from getting there."""
+    orientation while holding the rates that keep it from getting there.
+
+    ``aoa_per_g`` (rad per g, default 0: the trim's angle of attack in any turn): the nose is
+    asked ``aoa_per_g (n - 1)`` higher above the flight path in a turn of load factor
+    n = 1 / cos(bank). A banked wing at the level trim's angle of attack carries only
+    cos(bank) of the weight; quasi-steady lift grows with the angle of attack (the reference
+    wingbeat at 7 m/s: 1.01 of the weight at 5 deg, 1.41 at 15 deg, ~25 deg per g).
+    """
     import mujoco
 
     bank = float(np.arctan2(speed * turn_rate, GRAVITY))
@@ -363,8 +370,11 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
     # angle of attack about its own y axis: the bank turns about the velocity, so the
     # body-frame velocity has no sideslip
     # (left wing down by ``bank`` is a rotation about the forward axis by -bank: y left)
+    # the load factor of the coordinated turn (cos(bank) floored: a bank near 90 deg asks at
+    # most 5 g's worth)
+    aoa = trim.aoa + aoa_per_g * (1.0 / max(float(np.cos(bank)), 0.2) - 1.0)
     R = (_rot_z(heading) @ _rot_y(-climb) @ _rot_x(-bank)
-         @ _rot_y(-trim.aoa))
+         @ _rot_y(-aoa))
     del mujoco
     v = speed * np.array([np.cos(climb) * np.cos(heading), np.cos(climb) * np.sin(heading),
                           np.sin(climb)])

@@ -122,6 +122,9 @@ class Task:
     """The path target asks the bank its recovery curve has this long after the wingbeat's
     end, s (None: :class:`~flapsim.bird.path.PathTarget`'s default, 0.3; 0: at the end, the
     paper's)."""
+    aoa_per_g_deg: float | None = None
+    """The path target asks this much more angle of attack per g of a turn's load factor,
+    deg (None: :class:`~flapsim.bird.path.PathTarget`'s default, 0)."""
 
 
 @dataclass
@@ -197,6 +200,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         cfg = FlightConfig(speed=task.speed)
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         lead = {} if task.bank_lead_s is None else {"bank_lead_s": float(task.bank_lead_s)}
+        if task.aoa_per_g_deg is not None:
+            lead["aoa_per_g_deg"] = float(task.aoa_per_g_deg)
         target = PathTarget(trim, task.path, speed=task.speed, **lead)
         if any(task.wind) or task.flow:
             # the bird feels the air it flies through (and flies its path relative to it)

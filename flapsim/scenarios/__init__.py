@@ -77,6 +77,9 @@ class EvalOptions:
     bank_lead_s: float | None = None
     """Flight: the path target asks the bank this long ahead, s (None: its default, 0.3;
     0: at the wingbeat's end, the paper's)."""
+    aoa_per_g_deg: float | None = None
+    """Flight: the path target asks this much more angle of attack per g of a turn's load
+    factor, deg (None: its default, 0)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

@@ -140,6 +140,27 @@ def test_target_state_banks_into_a_coordinated_turn(trim):
     np.testing.assert_allclose(S0[5:8], trim.S[5:8], atol=1e-12)
 
 
+def test_target_state_asks_more_angle_of_attack_per_g_of_the_turn(trim):
+    # a 60 deg bank is a 2 g turn (n = 1 / cos 60 deg): aoa_per_g asks the nose that much
+    # higher above the flight path, read back from the body-frame velocity's direction;
+    # level flight is unchanged
+    v = 7.0
+    w = 9.81 * np.tan(np.radians(60.0)) / v
+    per_g = np.radians(20.0)
+    base = target_state(trim, v, heading=0.0, climb=0.0, turn_rate=w)
+    more = target_state(trim, v, heading=0.0, climb=0.0, turn_rate=w, aoa_per_g=per_g)
+
+    def aoa(S):
+        return -np.arctan2(S[4], S[2])
+
+    assert aoa(base) == pytest.approx(trim.aoa, abs=1e-9)
+    assert aoa(more) == pytest.approx(trim.aoa + per_g * (2.0 - 1.0), abs=1e-9)
+    assert more[1] == pytest.approx(base[1], abs=1e-12)  # the same bank
+    assert np.linalg.norm(more[2:5]) == pytest.approx(v, rel=1e-12) and abs(more[3]) < 1e-12
+    np.testing.assert_allclose(target_state(trim, v, 0.0, 0.0, 0.0, aoa_per_g=per_g),
+                               target_state(trim, v, 0.0, 0.0, 0.0), atol=1e-12)
+
+
 def test_a_mirrored_sample_is_the_mirror_birds_flight(flight):
     # the database's mirror images (MIRROR_STATE, mirror_params) are samples only if the dove
     # flies them: from a rolled, side-slipping, yawing state with a lopsided wingbeat, and

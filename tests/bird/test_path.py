@@ -304,6 +304,12 @@ def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
             PathTarget(Trim(np.zeros(8)), path, bank_lead_s=bad)
     assert main(["eval", "--scenario", "figure8-level", "--bank-lead", "2"]) != 0
     assert "--bank-lead must be 0..1 s" in capsys.readouterr().err
+    for bad in (-1.0, 100.0, float("nan")):
+        with pytest.raises(InputError, match="angle of attack per g"):
+            PathTarget(Trim(np.zeros(8)), path, aoa_per_g_deg=bad)
+    assert main(["eval", "--scenario", "figure8-level", "--aoa-per-g", "-5"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "--aoa-per-g must be 0..90 deg" in err and "\n" not in err
 
 
 def test_curvature_and_climb_of_a_helix_are_its_closed_form():
