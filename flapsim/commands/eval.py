@@ -71,6 +71,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="flight: the path target asks the bank its recovery curve has S seconds "
                         "after the wingbeat's end (default 0.3; 0: at the end, the paper's; "
                         "--table1 uses 0)")
+    p.add_argument("--speed", type=float, default=None, metavar="M_S",
+                   help="flight: the speed asked of every flight, m/s (default 7, the paper's; the "
+                        "bundled database was sampled at 7: slower flight needs a database sampled "
+                        "there, see the README)")
     p.add_argument("--aoa-per-g", type=float, default=None, metavar="DEG",
                    help="flight: the path target asks DEG more angle of attack per g of a turn's "
                         "load factor (default 0, the paper's; 30 follows 8 m circles and loses "
@@ -154,6 +158,9 @@ def run(args: argparse.Namespace) -> dict:
     check_regression_options(args)
     if args.bank_lead is not None and not (math.isfinite(args.bank_lead) and 0.0 <= args.bank_lead <= 1.0):
         raise InputError(f"--bank-lead must be 0..1 s (within the 1 s look-ahead), got {args.bank_lead}")
+    speed = getattr(args, "speed", None)
+    if speed is not None and not (math.isfinite(speed) and 3.0 <= speed <= 12.0):
+        raise InputError(f"--speed must be 3..12 m/s, got {speed}")
     aoa = getattr(args, "aoa_per_g", None)
     if aoa is not None and not (math.isfinite(aoa) and 0.0 <= aoa <= 90.0):
         raise InputError(f"--aoa-per-g must be 0..90 deg, got {aoa}")
@@ -161,7 +168,7 @@ def run(args: argparse.Namespace) -> dict:
                                  mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
                                  predict=args.predict, bank_lead_s=args.bank_lead,
-                                 aoa_per_g_deg=aoa, layers=args.layers,
+                                 speed=speed, aoa_per_g_deg=aoa, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
     if args.table1:
@@ -373,7 +380,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
         o.k_dense = 0  # the paper's fixed neighbourhood: the sweep is over k itself
         o.bank_lead_s = 0.0  # the paper's path controller: the bank of the wingbeat's end
-        o.aoa_per_g_deg = 0.0
+        o.aoa_per_g_deg, o.speed = 0.0, None
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
     base = 10000 if 10000 in dbs else max(dbs)
@@ -384,7 +391,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
         o.k_dense = 0
         o.bank_lead_s = 0.0
-        o.aoa_per_g_deg = 0.0
+        o.aoa_per_g_deg, o.speed = 0.0, None
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)

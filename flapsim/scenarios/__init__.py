@@ -77,6 +77,8 @@ class EvalOptions:
     bank_lead_s: float | None = None
     """Flight: the path target asks the bank this long ahead, s (None: its default, 0.3;
     0: at the wingbeat's end, the paper's)."""
+    speed: float | None = None
+    """Flight: the speed asked of every flight, m/s (None: each task's own, 7)."""
     aoa_per_g_deg: float | None = None
     """Flight: the path target asks this much more angle of attack per g of a turn's load
     factor, deg (None: its default, 0)."""

@@ -58,6 +58,8 @@ def _fly_task(task, opt: EvalOptions, record: bool):
 
     if opt.bank_lead_s is not None:
         task = dataclasses.replace(task, bank_lead_s=opt.bank_lead_s)
+    if opt.speed is not None:
+        task = dataclasses.replace(task, speed=opt.speed)
     if opt.aoa_per_g_deg is not None:
         task = dataclasses.replace(task, aoa_per_g_deg=opt.aoa_per_g_deg)
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,

@@ -310,6 +310,9 @@ def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
     assert main(["eval", "--scenario", "figure8-level", "--aoa-per-g", "-5"]) != 0
     err = capsys.readouterr().err.strip()
     assert "--aoa-per-g must be 0..90 deg" in err and "\n" not in err
+    assert main(["eval", "--scenario", "figure8-level", "--speed", "1"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "--speed must be 3..12 m/s" in err and "\n" not in err
 
 
 def test_curvature_and_climb_of_a_helix_are_its_closed_form():

@@ -292,3 +292,23 @@ def test_what_a_path_asks_per_wingbeat_is_the_arc_over_the_radius():
     s = np.arange(6.0, rev.length - 5.0, d)
     lo, hi = _path_steering(rev, [0.0, *s], rev.point(s))
     assert hi == pytest.approx(-np.degrees(d / R), rel=5e-3) and lo < 0
+
+
+def test_eval_options_reach_every_flight(monkeypatch):
+    """--speed, --bank-lead and --aoa-per-g replace the task's own values in the task flown."""
+    import dataclasses
+
+    import flapsim.bird.tasks as tasks_mod
+    from flapsim.bird.paths import straight
+    from flapsim.bird.tasks import Task
+    from flapsim.scenarios import EvalOptions
+    from flapsim.scenarios.flight import _fly_task
+
+    seen = []
+    monkeypatch.setattr(tasks_mod, "fly_task", lambda task, *a, **kw: seen.append(task))
+    task = Task(straight(10.0))
+    _fly_task(task, EvalOptions(), record=False)
+    _fly_task(task, EvalOptions(speed=5.5, bank_lead_s=0.1, aoa_per_g_deg=30.0), record=False)
+    assert (seen[0].speed, seen[0].bank_lead_s, seen[0].aoa_per_g_deg) == (7.0, None, None)
+    assert (seen[1].speed, seen[1].bank_lead_s, seen[1].aoa_per_g_deg) == (5.5, 0.1, 30.0)
+    assert dataclasses.replace(seen[1], speed=7.0, bank_lead_s=None, aoa_per_g_deg=None) == task
