@@ -84,3 +84,46 @@ def test_best_sustained_keeps_held_in_range_wingbeats():
     b2 = best_sustained(pts, thrust_floor=-0.1)
     r7 = next(r for r in b2["per_speed"] if r["speed"] == 7.0)
     assert r7["max_load_factor"] == pytest.approx(1.30)
+
+
+def test_free_flight_range_excess_is_the_joints_own_overshoot():
+    """The search keeps a wingbeat by the database's rule; its excess equals a brute-force
+    overshoot from MuJoCo's joint ranges and the recorded joint angles of the same wingbeat,
+    is nil for the reference wingbeat, and exceeds the tolerance for a wide, fast beat (the
+    flap x1.25 beat 10 % faster twists the left elbow 7 deg past its -30 deg end)."""
+    import mujoco
+
+    from flapsim.bird import cycle
+    from flapsim.bird.flight import DoveFlight, FlightConfig
+    from flapsim.bird.limits import free_flight_range_excess
+    from flapsim.bird.model import Dove
+    from flapsim.bird.sampling import RANGE_TOLERANCE
+    from flapsim.bird.wingbeat import reference_wingbeat
+
+    fl = DoveFlight(Dove.load(), reference_wingbeat())
+    try:
+        P0 = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
+        wide = Candidate(1.25, 0.9, 0.0).params(P0)
+        assert free_flight_range_excess(fl, P0, 7.0) <= RANGE_TOLERANCE
+        got = free_flight_range_excess(fl, wide, 7.0)
+        assert got > RANGE_TOLERANCE
+        # brute force: fly the same two wingbeats, record every step, compare every limited
+        # hinge joint of the 14 DOF with its range
+        fl.reset(FlightConfig(speed=7.0), P0)
+        start = cycle.fly_cycle(fl, cycle.snapshot(fl), P0, fl.ref).snapshot
+        e = cycle.fly_cycle(fl, start, wide, fl.ref, record=True)
+        m = fl.model
+        worst = 0.0
+        checked = 0
+        for name in DOF_NAMES:
+            j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if j < 0 or not m.jnt_limited[j]:
+                continue  # the tail spread is a tendon
+            checked += 1
+            lo, hi = m.jnt_range[j]
+            q = e.qpos[:, m.jnt_qposadr[j]]
+            worst = max(worst, float(np.max(q - hi)), float(np.max(lo - q)))
+        assert checked >= 12
+        assert got == pytest.approx(worst, abs=1e-12)
+    finally:
+        fl.close()
