@@ -723,7 +723,7 @@ class CoarsePredictor:
         """P0's end from ``snap``, simulated on the coarse copy."""
         if self._twin is None or self._of is not ctl.flight:
             self._twin, self._of = ctl.flight.twin(self.rate_hz), ctl.flight
-        return cycle.fly_cycle(self._twin, snap, ctl.P0, ctl.ref)
+        return cycle.fly_cycle(self._twin, snap, ctl.reference_params(), ctl.ref)
 
     def flown(self, end: cycle.CycleEnd) -> None:
         """Nothing carries over between wingbeats."""
@@ -764,12 +764,34 @@ class WingbeatController:
     predictor: S0Predictor | CoarsePredictor | None = None
     """None (default): S0 from a simulation of P0 every wingbeat (the paper); else simulated
     at a coarser step (:class:`CoarsePredictor`) or predicted (:class:`S0Predictor`)."""
+    carry: float = 0.0
+    """Share c of the last wingbeat's change from P0 that the next wingbeat starts from:
+    its reference is P0 + c (P_last - P0), simulated for S0 as P0 is, and the regression's
+    dP is added to it (0, the default: P0 every wingbeat, the paper's). In a sustained turn
+    or after a push the answer to a request falls short of it (the regression delivers part
+    of a requested change); carrying the last answer keeps what was reached and asks only
+    the rest (integral action in wingbeat space). The sum stays within the database's dP."""
+    _last: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.regressor.dP.shape[1] != N_PARAMS:
             raise InputError(f"database dP has {self.regressor.dP.shape[1]} columns, expected {N_PARAMS}")
+        if not (np.isfinite(self.carry) and 0.0 <= self.carry <= 1.0):
+            raise InputError(f"the wingbeat carry must be a share 0..1, got {self.carry}")
         if self.lo is None or self.hi is None:
             self.lo, self.hi = cycle.model_dof_ranges(self.flight)
+
+    def reset(self) -> None:
+        """Forget the last wingbeat (a new flight)."""
+        self._last = None
+        if self.predictor is not None:
+            self.predictor.reset()
+
+    def reference_params(self) -> np.ndarray:
+        """The wingbeat simulated for S0 and added to: P0 + carry (P_last - P0)."""
+        if self.carry == 0.0 or self._last is None:
+            return self.P0
+        return self.P0 + self.carry * (self._last - self.P0)
 
     @property
     def ref(self) -> ReferenceWingbeat:
@@ -787,16 +809,22 @@ class WingbeatController:
                 cycle.restore(fl, snap)
             S_now = fl.reduced_state()  # the wingbeat's start state, as the samples' S
         snap = snap or cycle.snapshot(fl)
+        base = self.reference_params()
         if self.predictor is None:
-            e0 = cycle.fly_cycle(fl, snap, self.P0, self.ref)
+            e0 = cycle.fly_cycle(fl, snap, base, self.ref)
         else:
             e0 = self.predictor.reference(self, snap)
         S_t = np.asarray(target(e0), float)
         dS = S_t - e0.S
-        P = self.P0 + self.regressor.predict(dS, S_now)
+        dP = self.regressor.predict(dS, S_now)
+        if base is not self.P0:
+            # what is carried plus the answer, within the database's own wingbeats
+            dP = np.clip(base - self.P0 + dP, self.regressor.dP_lo, self.regressor.dP_hi)
+        P = self.P0 + dP
         Pp = project_to_ranges(self.ref, P, self.lo, self.hi)
         projected = bool(np.max(np.abs(Pp - P)) > 1e-12)
         end = cycle.fly_cycle(fl, snap, Pp, self.ref, record=record, push=push)
+        self._last = Pp
         if self.predictor is not None:
             self.predictor.flown(end)
         return ControlStep(Pp, dS, S_t, e0, end, projected)
@@ -959,12 +987,16 @@ def database_table(db_path=None, feathers: str = "rigid") -> str:
     return str(cfg.get("table") or FlightConfig.table)
 
 
+#: The learned controller's default :attr:`WingbeatController.carry`.
+DEFAULT_CARRY = 0.0
+
+
 def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
                     weights: tuple[float, float, float] = PAPER_WEIGHTS,
                     predict: str = "simulate", predict_every: int = 4,
                     mirror: bool = True, state_weight: float = 0.0,
                     clip_request: float = DEFAULT_CLIP_REQUEST,
-                    k_dense: int | None = None) -> WingbeatController:
+                    k_dense: int | None = None, carry: float | None = None) -> WingbeatController:
     """A controller over a database (default: the bundled one of ``flight``'s dove, rigid or
     modal feathers) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error.
@@ -984,12 +1016,21 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     requests are clipped to the [q, 1 - q] quantiles of the database's dS first
     (:class:`Regressor`); 0: not clipped, the paper's.
 
+    ``carry`` (None: :data:`DEFAULT_CARRY`): the share of the last wingbeat's change the
+    next one starts from (:attr:`WingbeatController.carry`; 0: P0 every wingbeat, the paper's).
+
     ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
     ``coarse`` flies it every wingbeat at :data:`COARSE_RATE_HZ` (:class:`CoarsePredictor`);
     ``regression`` predicts it from the database's (S, S0) pairs and simulates P0 only
     every ``predict_every``-th wingbeat (:class:`S0Predictor`)."""
     if predict not in PREDICT_MODES:
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
+    carry = DEFAULT_CARRY if carry is None else float(carry)
+    if not (np.isfinite(carry) and 0.0 <= carry <= 1.0):
+        raise InputError(f"--carry must be a share 0..1, got {carry}")
+    if carry and predict == "regression":
+        raise InputError("--carry needs S0 simulated (--predict simulate or coarse): --predict "
+                         "regression predicts the reference wingbeat P0's end only")
     if predict == "coarse" and flight.modal is not None and not flight.modal.engine:
         raise InputError("--predict coarse needs rigid feathers or modal ones integrated by the "
                          "engine (ModalParams(integration='engine'), the default)")
@@ -1025,7 +1066,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
         raise InputError(f"--k-dense must be 0 (off) or >= 1 with --method lwlr, got {k_dense}")
     reg = Regressor(dS, dP, k=k, weights=weights, method=method, context=S, context_weight=state_weight,
                     clip_request=clip_request, k_dense=int(k_dense))
-    ctl = WingbeatController(flight, reg, P0)
+    ctl = WingbeatController(flight, reg, P0, carry=carry)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
     elif predict == "coarse":
@@ -1046,6 +1087,8 @@ def attach_predictor(ctl: WingbeatController, db_path=None, every: int = 4) -> W
     ``predict="regression"``."""
     from flapsim.bird.database import load_database
 
+    if ctl.carry:
+        raise InputError("--carry needs S0 simulated: --predict regression predicts P0's end only")
     path = db_path or bundled_database_path(ctl.flight.dove.feathers)
     db = load_database(path, model_hash=ctl.flight.dove.hash(), require_finalized=True)
     ctl.predictor = _predictor(db, path, every)

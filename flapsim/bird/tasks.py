@@ -28,6 +28,10 @@ from flapsim.bird.path import FlightPath, PathTarget, path_metrics, start_on_pat
 from flapsim.errors import InputError, SimulationError
 
 #: Unit push directions in the bird's heading frame: (forward, left, up) components.
+#: The reference wingbeat's period, s (the capture's mean cycle, 0.1076 s): the unit of the
+#: flight time a task allows beyond its path's own.
+REFERENCE_PERIOD_S = 0.1075
+
 PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
     "front": (1.0, 0.0, 0.0), "back": (-1.0, 0.0, 0.0), "left": (0.0, 1.0, 0.0),
     "right": (0.0, -1.0, 0.0), "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0),
@@ -115,7 +119,8 @@ class Task:
     feathers: str = "rigid"
     """``rigid`` or ``modal`` feathers (the database must be of the same dove)."""
     max_wingbeats: int | None = None
-    """Default: enough for 1.5x the path's length at ``speed``."""
+    """Wingbeats allowed (None, the default: as many as fit in 1.5x the path's flight time at
+    ``speed`` plus five reference wingbeats, whatever their length)."""
     stop_when_lost_m: float = 15.0
     """Give up when this far from the path (nothing more to learn), m."""
     bank_lead_s: float | None = None
@@ -208,6 +213,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
             target.wind = lambda p, t: fl.flow.velocity(np.asarray(p, float)[None], t)[0]
         start_on_path(fl, ctl.P0, task.path, task.speed,
                       wind=None if target.wind is None else target.wind(task.path.point(0.0), 0.0))
+        if hasattr(ctl, "reset"):
+            ctl.reset()  # a new flight: nothing carried from an earlier one
         r = _fly(fl, ctl, target, task, record, progress)
         r.model_hash, r.k, r.database_samples = fl.dove.hash(), ctl.regressor.k, ctl.regressor.n
         return r
@@ -219,14 +226,20 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
 def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) -> TaskResult:
     m, d = fl.model, fl.data
     dt = float(m.opt.timestep)
-    n_max = task.max_wingbeats or int(np.ceil(1.5 * task.path.length / (task.speed * 0.1075))) + 5
+    # the time allowed (unless a wingbeat count is given): 1.5x the path's length at the speed
+    # asked, plus five reference wingbeats. A budget in wingbeats of the reference's period
+    # gave a controller with shorter wingbeats less time (session 12: a faster-beat database's
+    # 0.095 s wingbeats had 11.9 s for a 60 m path where the bundled one's had 12.5 s)
+    t_budget = 1.5 * task.path.length / task.speed + 5 * REFERENCE_PERIOD_S
+    n_max = task.max_wingbeats or int(np.ceil(3.0 * t_budget / REFERENCE_PERIOD_S))
     pushes = sorted(task.pushes, key=lambda p: p.at_s)
     positions = [d.qpos[0:3].copy()]
     times = [float(d.time)]
     quats, steer, elev, qpos, push_log = [], [], [], [], []
     progress_s = [float(target.s)]  # the closest path point as each wingbeat began
     v_prev = fl.com_velocity()
-    status, reason = "lost", f"the path's end not reached in {n_max} wingbeats"
+    status, reason = "lost", (f"the path's end not reached in {n_max} wingbeats" if task.max_wingbeats
+                              else f"the path's end not reached in {t_budget:.1f} s")
     lost_at = None
     bar = None
     if progress:
@@ -272,6 +285,8 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
                 break
             if target.done:
                 status, reason = "completed", ""
+                break
+            if not task.max_wingbeats and d.time - times[0] >= t_budget - 1e-9:
                 break
     finally:
         if bar is not None:

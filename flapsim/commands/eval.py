@@ -41,7 +41,7 @@ def push_note(table: list[dict]) -> str:
 
 
 def check_regression_options(args: argparse.Namespace) -> None:
-    """--clip-request, --state-weight and --k-dense (fly, eval, view): one-line errors."""
+    """--clip-request, --state-weight, --k-dense and --carry (fly, eval, view): one-line errors."""
     import math
 
     q, w = args.clip_request, args.state_weight
@@ -52,6 +52,11 @@ def check_regression_options(args: argparse.Namespace) -> None:
     kd = getattr(args, "k_dense", None)
     if kd is not None and kd < 0:
         raise InputError(f"--k-dense must be 0 (off) or >= 1, got {kd}")
+    c = getattr(args, "carry", None)
+    if c is not None and not (math.isfinite(c) and 0.0 <= c <= 1.0):
+        raise InputError(f"--carry must be a share 0..1, got {c}")
+    if c and getattr(args, "predict", "simulate") == "regression":
+        raise InputError("--carry needs S0 simulated (--predict simulate or coarse)")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -165,6 +170,7 @@ def run(args: argparse.Namespace) -> dict:
     if aoa is not None and not (math.isfinite(aoa) and 0.0 <= aoa <= 90.0):
         raise InputError(f"--aoa-per-g must be 0..90 deg, got {aoa}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
+                                 carry=args.carry,
                                  mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
                                  predict=args.predict, bank_lead_s=args.bank_lead,
@@ -380,7 +386,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
         o.k_dense = 0  # the paper's fixed neighbourhood: the sweep is over k itself
         o.bank_lead_s = 0.0  # the paper's path controller: the bank of the wingbeat's end
-        o.aoa_per_g_deg, o.speed = 0.0, None
+        o.aoa_per_g_deg, o.speed, o.carry = 0.0, None, 0.0
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
     base = 10000 if 10000 in dbs else max(dbs)
@@ -391,7 +397,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
         o.k_dense = 0
         o.bank_lead_s = 0.0
-        o.aoa_per_g_deg, o.speed = 0.0, None
+        o.aoa_per_g_deg, o.speed, o.carry = 0.0, None, 0.0
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)

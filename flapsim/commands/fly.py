@@ -33,6 +33,10 @@ def add_regression_arguments(p: argparse.ArgumentParser) -> None:
                    help="the regression chooses neighbours by dS and, with weight W, by the "
                         "wingbeat's start state (default 0: dS only, the paper's; for databases "
                         "that mix cruise and disturbed pre-states, see the README)")
+    p.add_argument("--carry", type=float, default=None, metavar="C",
+                   help="share of the last wingbeat's change from the reference wingbeat that the "
+                        "next one starts from (default: the dove's, see the README; 0: the "
+                        "reference every wingbeat, the paper's)")
     p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper), simulate it at a "
@@ -186,7 +190,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
             ctl = load_controller(fl, args.db, method=args.method, k=args.k,
                                   predict=getattr(args, "predict", "simulate"), mirror=args.mirror,
                                   clip_request=args.clip_request, state_weight=args.state_weight,
-                                  k_dense=args.k_dense)
+                                  k_dense=args.k_dense, carry=args.carry)
         else:
             ctl = BaseController(fl, with_tail_bias(p0(), cfg.tail_bias_deg))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
@@ -235,7 +239,8 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     predict = getattr(args, "predict", "simulate")
     r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
                  record=bool(args.video or args.out), clip_request=args.clip_request,
-                 state_weight=args.state_weight, predict=predict, k_dense=args.k_dense)
+                 state_weight=args.state_weight, predict=predict, k_dense=args.k_dense,
+                 carry=args.carry)
     m = r.metrics
     completed = r.status == "completed"
     result = {

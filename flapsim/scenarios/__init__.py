@@ -65,6 +65,9 @@ class EvalOptions:
     0: always ``k``)."""
     mirror: bool = True
     """Flight: the regression also searches the samples' mirror images."""
+    carry: float | None = None
+    """Flight: the share of the last wingbeat's change the next one starts from (None: the
+    controller's default, :data:`flapsim.bird.controller.DEFAULT_CARRY`; 0: the paper's)."""
     clip_request: float = 0.02
     """Flight: the regression clips each requested dS component to these quantiles of the
     database's (0: no clip; the default is

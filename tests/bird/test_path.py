@@ -370,3 +370,17 @@ def test_geometry_of_a_straight_climb_and_the_inclined_circles():
     # reversed, a climb becomes a descent
     rev = FlightPath(paths.inclined_circle(3.6, 30.0).points[::-1])
     assert rev.geometry().max_climb_deg == pytest.approx(g.max_descent_deg, abs=1e-6)
+
+
+def test_a_task_allows_1_5x_its_flight_time_whatever_the_wingbeats_length():
+    """A 20 m path into a 4 m/s headwind (ground speed ~3 m/s, 6.7 s needed) is flown for the
+    time allowed, 1.5 x 20 m / 7 m/s + 5 reference wingbeats = 4.82 s, and stops within one
+    wingbeat of it (a learned wingbeat lasts 0.09-0.115 s) short of the end."""
+    from flapsim.bird.paths import straight
+    from flapsim.bird.tasks import REFERENCE_PERIOD_S, Task, fly_task
+
+    task = Task(straight(20.0), wind=(-4.0, 0.0, 0.0))
+    r = fly_task(task)
+    budget = 1.5 * 20.0 / 7.0 + 5 * REFERENCE_PERIOD_S
+    assert r.metrics["progress_m"] < 20.0 and r.status == "lost"
+    assert budget - 1e-9 <= r.metrics["simulated_s"] < budget + 0.12
