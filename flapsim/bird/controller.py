@@ -987,8 +987,10 @@ def database_table(db_path=None, feathers: str = "rigid") -> str:
     return str(cfg.get("table") or FlightConfig.table)
 
 
-#: The learned controller's default :attr:`WingbeatController.carry`.
-DEFAULT_CARRY = 0.0
+#: The learned controller's default :attr:`WingbeatController.carry`, per dove (README,
+#: "Carrying the last wingbeat"): measured over five databases for rigid feathers, not yet
+#: for modal ones.
+DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
 
 
 def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
@@ -1016,7 +1018,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     requests are clipped to the [q, 1 - q] quantiles of the database's dS first
     (:class:`Regressor`); 0: not clipped, the paper's.
 
-    ``carry`` (None: :data:`DEFAULT_CARRY`): the share of the last wingbeat's change the
+    ``carry`` (None: :data:`DEFAULT_CARRY` for the flight's dove): the share of the last wingbeat's change the
     next one starts from (:attr:`WingbeatController.carry`; 0: P0 every wingbeat, the paper's).
 
     ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
@@ -1025,7 +1027,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     every ``predict_every``-th wingbeat (:class:`S0Predictor`)."""
     if predict not in PREDICT_MODES:
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
-    carry = DEFAULT_CARRY if carry is None else float(carry)
+    carry = DEFAULT_CARRY.get(flight.dove.feathers, 0.0) if carry is None else float(carry)
     if not (np.isfinite(carry) and 0.0 <= carry <= 1.0):
         raise InputError(f"--carry must be a share 0..1, got {carry}")
     if carry and predict == "regression":

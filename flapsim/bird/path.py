@@ -262,9 +262,9 @@ class PathTarget:
     aoa_per_g_deg: float = 0.0
     """The nose is asked this much higher above the flight path per g of the turn's load
     factor above 1, deg (:func:`~flapsim.bird.controller.target_state`'s ``aoa_per_g``; 0: the
-    level trim's angle of attack in every turn, the paper's). Measured (README, "Where the
-    tight turns and steep climbs fail"): 30 follows 8 m circles the default loses, and loses
-    scenarios of the suite the default follows."""
+    level trim's angle of attack in every turn, the paper's). Tasks default to the dove's
+    :data:`~flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG` (30 for rigid feathers, with the
+    controller's carry; README, "Carrying the last wingbeat")."""
     s: float = 0.0
     """Progress along the path (arc length of the last closest point), m."""
     integrals: np.ndarray = field(default_factory=lambda: np.zeros(2))

@@ -28,6 +28,12 @@ from flapsim.bird.path import FlightPath, PathTarget, path_metrics, start_on_pat
 from flapsim.errors import InputError, SimulationError
 
 #: Unit push directions in the bird's heading frame: (forward, left, up) components.
+#: The path target's default extra angle of attack per g of a turn's load factor, deg, per
+#: dove (:attr:`~flapsim.bird.path.PathTarget.aoa_per_g_deg`; README, "Carrying the last
+#: wingbeat"): measured with the rigid dove's carry over five databases, not for modal
+#: feathers.
+DEFAULT_AOA_PER_G_DEG = {"rigid": 30.0, "modal": 0.0}
+
 #: The reference wingbeat's period, s (the capture's mean cycle, 0.1076 s): the unit of the
 #: flight time a task allows beyond its path's own.
 REFERENCE_PERIOD_S = 0.1075
@@ -129,7 +135,12 @@ class Task:
     paper's)."""
     aoa_per_g_deg: float | None = None
     """The path target asks this much more angle of attack per g of a turn's load factor,
-    deg (None: :class:`~flapsim.bird.path.PathTarget`'s default, 0)."""
+    deg (None: the dove's default, :data:`DEFAULT_AOA_PER_G_DEG`; 0: the paper's)."""
+
+
+def default_aoa_per_g(feathers: str, asked: float | None = None) -> float:
+    """``asked``, or the dove's default extra angle of attack per g (deg)."""
+    return float(DEFAULT_AOA_PER_G_DEG.get(feathers, 0.0) if asked is None else asked)
 
 
 @dataclass
@@ -205,8 +216,7 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         cfg = FlightConfig(speed=task.speed)
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         lead = {} if task.bank_lead_s is None else {"bank_lead_s": float(task.bank_lead_s)}
-        if task.aoa_per_g_deg is not None:
-            lead["aoa_per_g_deg"] = float(task.aoa_per_g_deg)
+        lead["aoa_per_g_deg"] = default_aoa_per_g(task.feathers, task.aoa_per_g_deg)
         target = PathTarget(trim, task.path, speed=task.speed, **lead)
         if any(task.wind) or task.flow:
             # the bird feels the air it flies through (and flies its path relative to it)

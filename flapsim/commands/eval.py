@@ -82,8 +82,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "there, see the README)")
     p.add_argument("--aoa-per-g", type=float, default=None, metavar="DEG",
                    help="flight: the path target asks DEG more angle of attack per g of a turn's "
-                        "load factor (default 0, the paper's; 30 follows 8 m circles and loses "
-                        "other scenarios: see the README)")
+                        "load factor (default 30 for rigid feathers, 0 for modal ones; 0: the "
+                        "paper's; see the README)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",

@@ -35,8 +35,8 @@ def add_regression_arguments(p: argparse.ArgumentParser) -> None:
                         "that mix cruise and disturbed pre-states, see the README)")
     p.add_argument("--carry", type=float, default=None, metavar="C",
                    help="share of the last wingbeat's change from the reference wingbeat that the "
-                        "next one starts from (default: the dove's, see the README; 0: the "
-                        "reference every wingbeat, the paper's)")
+                        "next one starts from (default 0.4 for rigid feathers, 0 for modal ones; "
+                        "0: the reference every wingbeat, the paper's; see the README)")
     p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper), simulate it at a "

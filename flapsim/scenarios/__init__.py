@@ -84,7 +84,7 @@ class EvalOptions:
     """Flight: the speed asked of every flight, m/s (None: each task's own, 7)."""
     aoa_per_g_deg: float | None = None
     """Flight: the path target asks this much more angle of attack per g of a turn's load
-    factor, deg (None: its default, 0)."""
+    factor, deg (None: the dove's default, :data:`flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG`)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

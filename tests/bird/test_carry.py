@@ -63,7 +63,7 @@ def test_the_carried_change_is_a_geometric_sum(flight, carry):
 
 
 def test_carry_options_are_checked(flight, capsys):
-    assert 0.0 <= DEFAULT_CARRY <= 1.0
+    assert all(0.0 <= c <= 1.0 for c in DEFAULT_CARRY.values())
     for bad in (-0.1, 1.5, float("nan")):
         with pytest.raises(InputError, match="carry"):
             _controller(flight, bad)
@@ -72,8 +72,26 @@ def test_carry_options_are_checked(flight, capsys):
     with pytest.raises(InputError, match="--carry needs S0 simulated"):
         load_controller(flight, carry=0.5, predict="regression")
     assert load_controller(flight, carry=0.3).carry == 0.3
-    assert load_controller(flight).carry == DEFAULT_CARRY
+    assert load_controller(flight).carry == DEFAULT_CARRY["rigid"] == 0.4
     for command in (["eval", "--scenario", "figure8-level"], ["fly", "--controller", "learned"]):
         assert main([*command, "--carry", "2"]) == 2
         err = capsys.readouterr().err.strip()
         assert "--carry must be a share 0..1" in err and "\n" not in err
+
+
+def test_the_coarse_prediction_flies_the_carried_reference(flight):
+    # with S0 simulated on the coarse copy, the copy flies P0 + c (P_last - P0) too
+    from flapsim.bird.controller import CoarsePredictor
+
+    ctl = _controller(flight, 0.5)
+    ctl.predictor = CoarsePredictor()
+    flight.reset(FlightConfig(), ctl.P0)
+    ctl.reset()
+    step = ctl.choose(lambda e0: e0.S)
+    cycle.restore(flight, step.end.snapshot)
+    snap = cycle.snapshot(flight)
+    step2 = ctl.choose(lambda e0: e0.S, snap)
+    twin = ctl.predictor._twin
+    ref = cycle.fly_cycle(twin, snap, ctl.P0 + 0.5 * (step.P - ctl.P0), ctl.ref)
+    np.testing.assert_allclose(step2.reference.S, ref.S, atol=1e-12)
+    np.testing.assert_allclose(step2.P - ctl.P0, 1.5 * D, atol=1e-15)

@@ -295,7 +295,8 @@ def test_what_a_path_asks_per_wingbeat_is_the_arc_over_the_radius():
 
 
 def test_eval_options_reach_every_flight(monkeypatch):
-    """--speed, --bank-lead and --aoa-per-g replace the task's own values in the task flown."""
+    """--speed, --bank-lead and --aoa-per-g replace the task's own values in the task flown
+    (None: the path target's or the dove's defaults, applied in fly_task)."""
     import dataclasses
 
     import flapsim.bird.tasks as tasks_mod
