@@ -1018,8 +1018,9 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     requests are clipped to the [q, 1 - q] quantiles of the database's dS first
     (:class:`Regressor`); 0: not clipped, the paper's.
 
-    ``carry`` (None: :data:`DEFAULT_CARRY` for the flight's dove): the share of the last wingbeat's change the
-    next one starts from (:attr:`WingbeatController.carry`; 0: P0 every wingbeat, the paper's).
+    ``carry`` (None: :data:`DEFAULT_CARRY` for the flight's dove, 0 with ``predict=
+    "regression"``): the share of the last wingbeat's change the next one starts from
+    (:attr:`WingbeatController.carry`; 0: P0 every wingbeat, the paper's).
 
     ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
     ``coarse`` flies it every wingbeat at :data:`COARSE_RATE_HZ` (:class:`CoarsePredictor`);
@@ -1027,7 +1028,10 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     every ``predict_every``-th wingbeat (:class:`S0Predictor`)."""
     if predict not in PREDICT_MODES:
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
-    carry = DEFAULT_CARRY.get(flight.dove.feathers, 0.0) if carry is None else float(carry)
+    if carry is None:
+        # the default carries nothing where S0 is predicted for P0 alone
+        carry = 0.0 if predict == "regression" else DEFAULT_CARRY.get(flight.dove.feathers, 0.0)
+    carry = float(carry)
     if not (np.isfinite(carry) and 0.0 <= carry <= 1.0):
         raise InputError(f"--carry must be a share 0..1, got {carry}")
     if carry and predict == "regression":
@@ -1086,11 +1090,11 @@ def _predictor(db, path, every: int) -> S0Predictor:
 
 def attach_predictor(ctl: WingbeatController, db_path=None, every: int = 4) -> WingbeatController:
     """Switch ``ctl`` (made by :func:`load_controller` over ``db_path``) to
-    ``predict="regression"``."""
+    ``predict="regression"`` (and to carry 0: the prediction is of P0's end)."""
     from flapsim.bird.database import load_database
 
-    if ctl.carry:
-        raise InputError("--carry needs S0 simulated: --predict regression predicts P0's end only")
+    ctl.carry = 0.0  # the regression predicts P0's end only: nothing is carried
+    ctl.reset()
     path = db_path or bundled_database_path(ctl.flight.dove.feathers)
     db = load_database(path, model_hash=ctl.flight.dove.hash(), require_finalized=True)
     ctl.predictor = _predictor(db, path, every)

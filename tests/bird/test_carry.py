@@ -71,6 +71,8 @@ def test_carry_options_are_checked(flight, capsys):
             load_controller(flight, carry=bad)
     with pytest.raises(InputError, match="--carry needs S0 simulated"):
         load_controller(flight, carry=0.5, predict="regression")
+    # the default carries nothing where S0 is predicted for P0 alone
+    assert load_controller(flight, predict="regression").carry == 0.0
     assert load_controller(flight, carry=0.3).carry == 0.3
     assert load_controller(flight).carry == DEFAULT_CARRY["rigid"] == 0.4
     for command in (["eval", "--scenario", "figure8-level"], ["fly", "--controller", "learned"]):
