@@ -30,8 +30,8 @@ from flapsim.errors import InputError, SimulationError
 #: Unit push directions in the bird's heading frame: (forward, left, up) components.
 #: The path target's default extra angle of attack per g of a turn's load factor, deg, per
 #: dove (:attr:`~flapsim.bird.path.PathTarget.aoa_per_g_deg`; README, "Carrying the last
-#: wingbeat"): measured with the rigid dove's carry over five databases, not for modal
-#: feathers.
+#: wingbeat"): measured with the dove's carry over five databases each (modal feathers keep
+#: 0 with their carry of 0).
 DEFAULT_AOA_PER_G_DEG = {"rigid": 30.0, "modal": 0.0}
 
 #: The reference wingbeat's period, s (the capture's mean cycle, 0.1076 s): the unit of the
