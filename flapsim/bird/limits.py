@@ -68,14 +68,9 @@ class Candidate:
     """Both shoulder twists translated, deg (- supinates: more angle of attack)."""
 
     def params(self, P0: np.ndarray) -> np.ndarray:
-        from flapsim.bird.model import DOF_NAMES
+        from flapsim.bird.wingbeat import with_flap_and_beat, with_twist_bias
 
-        P = np.array(P0, dtype=float)
-        for side in "lr":
-            P[2 * DOF_NAMES.index(f"{side}_shoulder_flap")] *= self.flap_scale
-            P[2 * DOF_NAMES.index(f"{side}_shoulder_twist") + 1] += np.radians(self.twist_deg)
-        P[-1] *= self.timewarp
-        return P
+        return with_twist_bias(with_flap_and_beat(P0, self.flap_scale, self.timewarp), self.twist_deg)
 
 
 @dataclass
@@ -108,11 +103,10 @@ def free_flight_range_excess(fl, P: np.ndarray, speed: float) -> float:
     return float(cycle.fly_cycle(fl, start, P, fl.ref).range_excess)
 
 
-def search(candidates: list[Candidate], speeds: list[float], pitches_deg: list[float],
-           progress=None) -> list[TunnelPoint]:
+def search(candidates: list[Candidate], speeds: list[float], pitches_deg: list[float]
+           ) -> list[TunnelPoint]:
     """Every candidate at every speed: its free-flight range excess, and (when within the
-    database's tolerance) its tunnel forces at every pitch. ``progress``: called with the
-    number of tunnel runs done."""
+    database's tolerance) its tunnel forces at every pitch."""
     from flapsim.bird.flight import DoveFlight, FlightConfig, wind_tunnel
     from flapsim.bird.model import Dove, DoveParams
     from flapsim.bird.sampling import RANGE_TOLERANCE
@@ -137,8 +131,6 @@ def search(candidates: list[Candidate], speeds: list[float], pitches_deg: list[f
                         moment = float(r.pitch_moment)
                     out.append(TunnelPoint(v, pitch, c.flap_scale, c.timewarp, c.twist_deg, lift,
                                            thrust, float(np.degrees(excess)), moment))
-                    if progress is not None:
-                        progress(1)
     finally:
         fl.close()
     return out

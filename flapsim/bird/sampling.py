@@ -470,13 +470,9 @@ class SampleWorker:
 def sampling_centre(P0: np.ndarray, config: SamplingConfig) -> np.ndarray:
     """The wingbeat phase 1 draws around: P0 with both shoulder-flap scales multiplied by
     ``centre_flap_scale`` and the timewarp by ``centre_timewarp``."""
-    from flapsim.bird.model import DOF_NAMES
+    from flapsim.bird.wingbeat import with_flap_and_beat
 
-    P = np.array(P0, dtype=float)
-    for side in "lr":
-        P[2 * DOF_NAMES.index(f"{side}_shoulder_flap")] *= config.centre_flap_scale
-    P[-1] *= config.centre_timewarp
-    return P
+    return with_flap_and_beat(P0, config.centre_flap_scale, config.centre_timewarp)
 
 
 #: Largest excursion beyond a joint range a simulated sample may make, rad: MuJoCo's limits

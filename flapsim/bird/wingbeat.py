@@ -71,6 +71,16 @@ def with_twist_bias(p: np.ndarray, bias_deg: float) -> np.ndarray:
     return q
 
 
+def with_flap_and_beat(p: np.ndarray, flap_scale: float = 1.0, timewarp: float = 1.0) -> np.ndarray:
+    """``p`` with both shoulder-flap scales multiplied by ``flap_scale`` (a wider stroke) and
+    its timewarp by ``timewarp`` (< 1: a faster beat); symmetric like ``p``."""
+    q = np.array(p, dtype=float)
+    for side in "lr":
+        q[2 * DOF_NAMES.index(f"{side}_shoulder_flap")] *= flap_scale
+    q[-1] *= timewarp
+    return q
+
+
 def with_tail_bias(p: np.ndarray, bias_deg: float) -> np.ndarray:
     """``p`` with the tail bend translated by ``bias_deg`` (the paper's +17 deg: tail up)."""
     q = np.array(p, dtype=float)
