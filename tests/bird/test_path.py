@@ -131,6 +131,30 @@ def test_path_cli_errors(tmp_path, capsys):
     assert "--controller learned" in capsys.readouterr().err
 
 
+def test_fly_path_without_wingbeats_gets_the_tasks_time_budget(tmp_path, monkeypatch):
+    """``fly --path`` without ``--wingbeats`` hands the task no wingbeat count, so it is
+    flown for eval's time budget in seconds (the old count of 0.1075 s reference wingbeats
+    gave shorter learned wingbeats less time); ``--wingbeats N`` still caps it at N."""
+    import flapsim.bird.tasks as tasks
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(task, *a, **kw):
+        seen.append(task.max_wingbeats)
+        raise Stop
+
+    monkeypatch.setattr(tasks, "fly_task", capture)
+    f = tmp_path / "arc.csv"
+    np.savetxt(f, _arc(n=5), delimiter=",", header="x,y,z", comments="")
+    for extra in ([], ["--wingbeats", "7"]):
+        with pytest.raises(Stop):
+            main(["fly", "--controller", "learned", "--path", str(f), *extra])
+    assert seen == [None, 7]
+
+
 @pytest.mark.slow
 def test_the_dove_follows_a_figure_of_eight_with_ascending_and_descending_turns(tmp_path):
     # two 35 m lobes (427 m): left and right turns, the bank reversals between them, a 2 m
