@@ -3,7 +3,7 @@ climbs of growing angle, each flown once with the bundled database (or --db), ju
 ``flapsim eval`` judges (lost = farther than 3 m from the path).
 
     PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--feathers modal] [--speed V]
-        [--aoa-per-g DEG] [--json out.json]
+        [--aoa-per-g DEG] [--turn-g N [--turn-speed-floor V]] [--json out.json]
 """
 
 from __future__ import annotations
@@ -31,7 +31,12 @@ def main() -> None:
     ap.add_argument("--climbs", default="1,2,3,5")
     ap.add_argument("--speed", type=float, default=7.0, help="flight speed asked, m/s (default 7)")
     ap.add_argument("--aoa-per-g", type=float, default=None, metavar="DEG",
-                    help="the path target's extra angle of attack per g (default: its own, 0)")
+                    help="the path target's extra angle of attack per g (default: the dove's, "
+                         "30 rigid, 0 modal)")
+    ap.add_argument("--turn-g", type=float, default=0.0, metavar="N",
+                    help="slow down ahead of turns needing more than N g (default 0: never)")
+    ap.add_argument("--turn-speed-floor", type=float, default=None, metavar="V",
+                    help="with --turn-g, the lowest speed asked, m/s (default 6.5)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                     help="the dove (and, without --db, its bundled database)")
@@ -41,10 +46,12 @@ def main() -> None:
     cases += [("climb", float(c)) for c in a.climbs.split(",")]
     for kind, x in cases:
         path = inclined_circle(radius_m=x, turns=1.0) if kind == "circle" else climb(x)
-        r = fly_task(Task(path, speed=a.speed, feathers=a.feathers, aoa_per_g_deg=a.aoa_per_g), a.db)
+        r = fly_task(Task(path, speed=a.speed, feathers=a.feathers, aoa_per_g_deg=a.aoa_per_g,
+                          turn_load_factor=a.turn_g, turn_speed_floor=a.turn_speed_floor), a.db)
         m = r.metrics
         bank = np.degrees(np.arctan(a.speed ** 2 / (9.81 * x))) if kind == "circle" else 0.0
-        row = {"kind": kind, "value": x, "speed": a.speed, "bank_needed_deg": bank, "status": r.status,
+        row = {"kind": kind, "value": x, "speed": a.speed, "turn_g": a.turn_g, "bank_needed_deg": bank,
+               "status": r.status,
                "reason": r.reason, "max_path_distance": m.get("max_path_distance"),
                "Ef_per_wingbeat": m.get("Ef_per_wingbeat"), "progress_m": m["progress_m"],
                "length_m": path.length}

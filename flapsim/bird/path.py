@@ -265,6 +265,16 @@ class PathTarget:
     level trim's angle of attack in every turn, the paper's). Tasks default to the dove's
     :data:`~flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG` (30 for rigid feathers, with the
     controller's carry; README, "Carrying the last wingbeat")."""
+    turn_load_factor: float = 0.0
+    """Slowing for tight turns (0, the default: the speed asked is ``speed`` everywhere, the
+    paper's). Otherwise ahead of a turn the speed asked drops to ``sqrt(g r sqrt(n^2 - 1))``,
+    the speed at which a level turn of the tightest radius ``r`` within the next two look-ahead
+    distances needs this load factor ``n``, but not below ``turn_speed_floor``. A turn's load
+    factor grows with v^2 / r, and the wing holds little more than 1.2 g at 7 m/s
+    (:mod:`flapsim.bird.limits`), so a bird turns tighter by flying slower there."""
+    turn_speed_floor: float = 6.5
+    """The lowest speed asked for a turn, m/s (the bundled database's dove, trained around
+    7 +- 0.3 m/s, follows 4 m circles at 6.5 m/s and loses even 6 m ones at 6 m/s)."""
     s: float = 0.0
     """Progress along the path (arc length of the last closest point), m."""
     integrals: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -287,6 +297,25 @@ class PathTarget:
                              f"got {self.bank_lead_s}")
         if not (np.isfinite(self.aoa_per_g_deg) and 0.0 <= self.aoa_per_g_deg <= 90.0):
             raise InputError(f"the angle of attack per g must be 0..90 deg, got {self.aoa_per_g_deg}")
+        if not (np.isfinite(self.turn_load_factor)
+                and (self.turn_load_factor == 0.0 or 1.0 < self.turn_load_factor <= 5.0)):
+            raise InputError("the turns' load factor must be 0 (no slowing) or 1..5 g, got "
+                             f"{self.turn_load_factor}")
+        if not (np.isfinite(self.turn_speed_floor) and 0.5 <= self.turn_speed_floor <= self.speed):
+            raise InputError(f"the turns' lowest speed must be 0.5..{self.speed:g} m/s (the speed "
+                             f"asked), got {self.turn_speed_floor}")
+
+    def speed_for(self, s: float, window_m: float) -> float:
+        """The speed asked at progress ``s`` (m) looking ``window_m`` ahead: ``speed``, or less
+        ahead of a turn tighter than ``turn_load_factor`` allows at ``speed``."""
+        if self.turn_load_factor == 0.0:
+            return self.speed
+        ss = np.linspace(s, min(s + window_m, self.path.length), 41)
+        kappa = float(np.max(self.path.curvature(ss)))
+        if kappa <= 1e-9:
+            return self.speed
+        v = np.sqrt(GRAVITY * np.sqrt(self.turn_load_factor**2 - 1.0) / kappa)
+        return float(np.clip(v, self.turn_speed_floor, self.speed))
 
     def begin(self, position: np.ndarray, velocity: np.ndarray) -> None:
         """The bird's trunk position and centre-of-mass velocity as the wingbeat begins: where
@@ -315,12 +344,15 @@ class PathTarget:
         self._curve = (p, v, p_t, t_t, T)
         w = (np.zeros(3) if self.wind is None
              else np.asarray(self.wind(p, float(e0.snapshot.physics[0])), float))
-        e_v = self.speed - float(np.linalg.norm(v - w))  # the speed asked is airspeed
+        # the speed asked: slower ahead of a tight turn (turn_load_factor), looking two
+        # look-ahead distances on, as slowing down takes time
+        v_ref = self.speed_for(self.s, 2.0 * self.lookahead_s * max(speed_now, self.speed))
+        e_v = v_ref - float(np.linalg.norm(v - w))  # the speed asked is airspeed
         e_z = float(self.path.point(self.s)[2] - p[2])
         # anti-windup: the integrals may ask at most 2 m/s of speed and 1 m/s of climb
         lim = np.array([2.0 / max(self.ki_speed, 1e-9), 1.0 / max(self.ki_altitude, 1e-9)])
         self.integrals = np.clip(self.integrals + dt * np.array([e_v, e_z]), -lim, lim)
-        speed = self.speed + self.ki_speed * self.integrals[0]
+        speed = v_ref + self.ki_speed * self.integrals[0]
         # the ground track asked (vd's direction), flown at airspeed ``speed``: ground speed s
         # along the unit track d with |s d - w| = speed
         d = vd / max(float(np.linalg.norm(vd)), 1e-9)

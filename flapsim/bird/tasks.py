@@ -136,6 +136,12 @@ class Task:
     aoa_per_g_deg: float | None = None
     """The path target asks this much more angle of attack per g of a turn's load factor,
     deg (None: the dove's default, :data:`DEFAULT_AOA_PER_G_DEG`; 0: the paper's)."""
+    turn_load_factor: float = 0.0
+    """The speed asked drops ahead of turns that would need more than this load factor at
+    ``speed`` (0: no slowing, the paper's; :attr:`~flapsim.bird.path.PathTarget.turn_load_factor`)."""
+    turn_speed_floor: float | None = None
+    """The lowest speed asked for a turn, m/s (None: the path target's, 6.5 m/s, or ``speed``
+    when that is lower)."""
 
 
 def default_aoa_per_g(feathers: str, asked: float | None = None) -> float:
@@ -217,11 +223,16 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         lead = {} if task.bank_lead_s is None else {"bank_lead_s": float(task.bank_lead_s)}
         lead["aoa_per_g_deg"] = default_aoa_per_g(task.feathers, task.aoa_per_g_deg)
+        lead["turn_load_factor"] = float(task.turn_load_factor)
+        lead["turn_speed_floor"] = float(min(task.speed, PathTarget.turn_speed_floor)
+                                         if task.turn_speed_floor is None else task.turn_speed_floor)
         target = PathTarget(trim, task.path, speed=task.speed, **lead)
         if any(task.wind) or task.flow:
             # the bird feels the air it flies through (and flies its path relative to it)
             target.wind = lambda p, t: fl.flow.velocity(np.asarray(p, float)[None], t)[0]
-        start_on_path(fl, ctl.P0, task.path, task.speed,
+        # the bird starts at the speed asked where it starts (slower at a tight turn there)
+        v_start = target.speed_for(0.0, 2.0 * target.lookahead_s * task.speed)
+        start_on_path(fl, ctl.P0, task.path, v_start,
                       wind=None if target.wind is None else target.wind(task.path.point(0.0), 0.0))
         if hasattr(ctl, "reset"):
             ctl.reset()  # a new flight: nothing carried from an earlier one

@@ -84,6 +84,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="flight: the path target asks DEG more angle of attack per g of a turn's "
                         "load factor (default 30 for rigid feathers, 0 for modal ones; 0: the "
                         "paper's; see the README)")
+    p.add_argument("--turn-g", type=float, default=None, metavar="N",
+                   help="flight: slow down ahead of turns that would need more than N g at the "
+                        "speed asked, to the speed where they need N (0: never, the paper's; "
+                        "default 0; see the README, \"Slowing for tight turns\")")
+    p.add_argument("--turn-speed-floor", type=float, default=None, metavar="M_S",
+                   help="flight: with --turn-g, the lowest speed asked for a turn (default 6.5 m/s)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
@@ -169,12 +175,20 @@ def run(args: argparse.Namespace) -> dict:
     aoa = getattr(args, "aoa_per_g", None)
     if aoa is not None and not (math.isfinite(aoa) and 0.0 <= aoa <= 90.0):
         raise InputError(f"--aoa-per-g must be 0..90 deg, got {aoa}")
+    turn_g = getattr(args, "turn_g", None)
+    if turn_g is not None and not (math.isfinite(turn_g) and (turn_g == 0.0 or 1.0 < turn_g <= 5.0)):
+        raise InputError(f"--turn-g must be 0 (no slowing) or above 1 and at most 5 g, got {turn_g}")
+    floor = getattr(args, "turn_speed_floor", None)
+    if floor is not None and not (math.isfinite(floor) and 3.0 <= floor <= (speed or 7.0)):
+        raise InputError(f"--turn-speed-floor must be 3 m/s..the speed asked ({speed or 7.0:g}), "
+                         f"got {floor}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
                                  carry=args.carry,
                                  mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
                                  predict=args.predict, bank_lead_s=args.bank_lead,
-                                 speed=speed, aoa_per_g_deg=aoa, layers=args.layers,
+                                 speed=speed, aoa_per_g_deg=aoa, turn_load_factor=turn_g,
+                                 turn_speed_floor=floor, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
     if args.table1:
@@ -386,7 +400,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
         o.k_dense = 0  # the paper's fixed neighbourhood: the sweep is over k itself
         o.bank_lead_s = 0.0  # the paper's path controller: the bank of the wingbeat's end
-        o.aoa_per_g_deg, o.speed, o.carry = 0.0, None, 0.0
+        o.aoa_per_g_deg, o.speed, o.carry, o.turn_load_factor = 0.0, None, 0.0, 0.0
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
     base = 10000 if 10000 in dbs else max(dbs)
@@ -397,7 +411,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
         o.k_dense = 0
         o.bank_lead_s = 0.0
-        o.aoa_per_g_deg, o.speed, o.carry = 0.0, None, 0.0
+        o.aoa_per_g_deg, o.speed, o.carry, o.turn_load_factor = 0.0, None, 0.0, 0.0
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)

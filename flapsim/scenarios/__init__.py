@@ -85,6 +85,11 @@ class EvalOptions:
     aoa_per_g_deg: float | None = None
     """Flight: the path target asks this much more angle of attack per g of a turn's load
     factor, deg (None: the dove's default, :data:`flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG`)."""
+    turn_load_factor: float | None = None
+    """Flight: the speed asked drops ahead of turns needing more than this load factor
+    (None: the task's, 0 = no slowing; :attr:`flapsim.bird.tasks.Task.turn_load_factor`)."""
+    turn_speed_floor: float | None = None
+    """Flight: the lowest speed asked for a turn, m/s (None: the task's)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

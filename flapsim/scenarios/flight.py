@@ -62,6 +62,10 @@ def _fly_task(task, opt: EvalOptions, record: bool):
         task = dataclasses.replace(task, speed=opt.speed)
     if opt.aoa_per_g_deg is not None:
         task = dataclasses.replace(task, aoa_per_g_deg=opt.aoa_per_g_deg)
+    if opt.turn_load_factor is not None:
+        task = dataclasses.replace(task, turn_load_factor=opt.turn_load_factor)
+    if opt.turn_speed_floor is not None:
+        task = dataclasses.replace(task, turn_speed_floor=opt.turn_speed_floor)
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
                     clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict,
                     k_dense=opt.k_dense, carry=opt.carry)

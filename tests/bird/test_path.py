@@ -339,6 +339,57 @@ def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
     assert "--speed must be 3..12 m/s" in err and "\n" not in err
 
 
+def test_ahead_of_a_tight_turn_the_speed_asked_is_where_it_needs_the_load_factor_given():
+    """``turn_load_factor`` n: ahead of a level turn of radius r the speed asked is the one at
+    which that turn needs exactly n, i.e. sqrt(1 + (v^2 / (g r))^2) = n (4 m and 1.25 g:
+    5.42 m/s); the floor and the speed asked bound it, a straight far from the turn keeps the
+    speed asked, and 0 turns the slowing off. Tolerance 1 %: away from its ends the spline
+    through 48 points a turn has the circle's curvature within 0.3 %."""
+    from flapsim.bird.controller import GRAVITY, Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget
+
+    a = np.linspace(0.0, 2.5 * np.pi, 61)
+    lead_in = np.stack([np.linspace(-40.0, 0.0, 9)[:-1], np.zeros(8), np.full(8, 10.0)], 1)
+    circle = np.stack([4.0 * np.sin(a), 4.0 * (1 - np.cos(a)), np.full_like(a, 10.0)], 1)
+    path = FlightPath(np.concatenate([lead_in, circle]))
+    trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
+    tgt = PathTarget(trim, path, speed=7.0, turn_load_factor=1.25, turn_speed_floor=3.0)
+    v = tgt.speed_for(50.0, 10.0)  # 10..20 m into the circle
+    n = np.sqrt(1.0 + (v**2 / (GRAVITY * 4.0)) ** 2)
+    assert n == pytest.approx(1.25, rel=0.01)
+    assert v == pytest.approx(np.sqrt(GRAVITY * 4.0 * 0.75), rel=0.01)
+    assert tgt.speed_for(0.0, 14.0) == 7.0  # 26 m before the turn
+    assert tgt.speed_for(0.0, 45.0) <= v + 1e-9  # the turn is within the window
+    assert PathTarget(trim, path, speed=7.0, turn_load_factor=1.25).speed_for(50.0, 10.0) == 6.5
+    assert PathTarget(trim, path, speed=7.0).speed_for(50.0, 10.0) == 7.0
+    # a wide turn needs less than n at the speed asked: no slowing
+    assert PathTarget(trim, path, speed=7.0, turn_load_factor=3.0).speed_for(50.0, 10.0) == 7.0
+    # the wingbeat's request carries it (no speed integral yet: ki_speed 0)
+    tgt = PathTarget(trim, path, speed=7.0, turn_load_factor=1.25, turn_speed_floor=3.0,
+                     ki_speed=0.0, ki_altitude=0.0)
+    p = path.point(50.0)
+    vel = 5.4 * path.tangent(50.0)
+    tgt.s = 49.0  # progress so far (it looks for the closest point a few seconds on only)
+    tgt.begin(p, vel)
+    tgt(CycleEnd(None, np.zeros(8), p + vel * 0.1, np.array([1.0, 0, 0, 0]), vel, 0.1, 0.0))
+    assert tgt.asked[-1][0] == pytest.approx(tgt.speed_for(50.0, 2.0 * 7.0), rel=1e-3)
+    for bad in (1.0, 0.5, 6.0, float("nan")):
+        with pytest.raises(InputError, match="load factor"):
+            PathTarget(trim, path, turn_load_factor=bad)
+    for bad in (0.1, 8.0, float("nan")):
+        with pytest.raises(InputError, match="lowest speed"):
+            PathTarget(trim, path, turn_load_factor=1.25, turn_speed_floor=bad)
+
+
+def test_turn_g_options_get_one_line_errors(capsys):
+    for args, msg in ((["--turn-g", "0.9"], "--turn-g must be 0"),
+                      (["--turn-g", "1.3", "--turn-speed-floor", "9"], "--turn-speed-floor must be")):
+        assert main(["eval", "--scenario", "figure8-level", *args]) != 0
+        err = capsys.readouterr().err.strip()
+        assert msg in err and "\n" not in err
+
+
 def test_curvature_and_climb_of_a_helix_are_its_closed_form():
     # a helix of radius R rising c per radian: curvature R / (R^2 + c^2), climb atan(c / R).
     # 48 points a turn: away from the ends the interpolating spline is within 0.5 % of it
