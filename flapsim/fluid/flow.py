@@ -9,7 +9,8 @@ once per callback for all polygons (slower: it runs Python every step).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,6 +156,21 @@ class FlowField:
     def set_uniform(self, velocity: Sequence[float]) -> None:
         """Replace the uniform component in place (the compiled kernel sees it at once)."""
         self.params[1:4] = _vec3("uniform velocity", velocity)
+
+    @contextmanager
+    def still(self) -> Iterator[None]:
+        """Within the block the fluid is at rest everywhere (every packed row a zero
+        :class:`Uniform`, no Python fields); afterwards the flow is as it was. In place, so a
+        compiled force kernel holding :attr:`params` sees it too: what a bird does in still
+        air (its trim), measured on the flight that will fly in the wind."""
+        saved, fields = self.params.copy(), self.python_fields
+        self.params[:] = 0.0  # kind 0 is UNIFORM: zero velocity
+        self.python_fields = []
+        try:
+            yield
+        finally:
+            self.params[:] = saved
+            self.python_fields = fields
 
     def velocity(self, points: np.ndarray, t: float = 0.0) -> np.ndarray:
         """Fluid velocity at world ``points`` (n,3) at time ``t``."""

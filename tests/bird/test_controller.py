@@ -44,6 +44,25 @@ def trim(flight, controller):
     return trim_of_base_flight(flight, controller.P0)
 
 
+def test_the_trim_is_the_still_air_one_whatever_the_flights_wind(trim, controller):
+    """The trim is what P0 does in still air: the target adds the wind itself. Measured on a
+    flight in a 2 m/s crosswind and a breeze it must be the still-air trim to the bit (the
+    flow is zeroed in place for it), and the flight's wind is back afterwards. Measured in
+    the wind, its nose-up angle of attack was 0.14 rad against 0.046 in still air, and the
+    crosswind scenario was lost by slowing to ~4.5 m/s."""
+    from flapsim.fluid.flow import Breeze
+
+    fl = DoveFlight(Dove.load(), wind=(0.0, 2.0, 0.0), flow=(Breeze((1, 0, 0), 1.5, 0.3),))
+    try:
+        windy = trim_of_base_flight(fl, controller.P0)
+        np.testing.assert_array_equal(windy.S, trim.S)
+        assert abs(trim.aoa) < 0.1
+        np.testing.assert_allclose(fl.flow.velocity(np.zeros((1, 3)), 0.0), [[0.0, 2.0, 0.0]],
+                                   atol=1e-12)  # the breeze is sin(0) = 0 at t = 0
+    finally:
+        fl.close()
+
+
 def test_bundled_modal_database_is_for_the_modal_dove_and_finished():
     """The modal-feather dove's own bundled database: the rigid one's command with --feathers
     modal (the same sampling and seed), bound to the modal dove's hash, chosen by default."""

@@ -62,3 +62,24 @@ def test_python_field_is_added_and_checked():
         bad.velocity(np.zeros((3, 3)))
     with pytest.raises(InputError, match="non-zero"):
         Gust(direction=(0, 0, 0)).pack()
+
+
+def test_still_stops_every_primitive_in_place_and_restores_them():
+    """Inside ``still()`` every primitive (compiled rows and Python fields) gives zero, in
+    the same array a force kernel holds; after it, even when the block raises, the flow is
+    what it was, to the bit."""
+    f = FlowField([Uniform((1.0, 2.0, 0.5)), Gust((0, 1, 0), 3.0, 0.0, 1.0),
+                   Breeze((1, 0, 0), 0.7, 0.3), Vortex((0, 0, 0), (0, 0, 1), 2.0),
+                   PythonField(lambda p, t: np.tile([0.0, 0.0, 4.0], (len(p), 1)))])
+    held = f.params  # what a compiled kernel was handed
+    pts = np.array([[0.3, -0.2, 1.0], [2.0, 1.0, 0.0]])
+    before = f.velocity(pts, 0.4)
+    assert np.abs(before).max() > 1.0
+    with f.still():
+        assert f.params is held
+        np.testing.assert_array_equal(f.velocity(pts, 0.4), np.zeros_like(pts))
+    np.testing.assert_array_equal(f.velocity(pts, 0.4), before)
+    with pytest.raises(RuntimeError):
+        with f.still():
+            raise RuntimeError("inside")
+    np.testing.assert_array_equal(f.velocity(pts, 0.4), before)
