@@ -278,6 +278,36 @@ def test_in_a_crosswind_the_bird_crabs_so_that_its_ground_track_is_the_path():
     assert np.linalg.norm(S[2:5]) == pytest.approx(np.sqrt(45.0), abs=0.02)
 
 
+@pytest.mark.parametrize("memory", [0.0, 1.0])
+def test_the_bird_crabs_into_the_winds_lagged_average_and_is_carried_by_the_rest(memory):
+    """Still air for the first wingbeat, then a 3 m/s wind from the right across a path along
+    +x. The crab (heading -asin(w / 7)) uses the wind averaged with time constant ``memory``:
+    after one 0.1 s wingbeat 3 (1 - exp(-0.1 / memory)) = 0.285 m/s for 1 s, all 3 m/s for 0;
+    the ground velocity asked is that air velocity plus the wind of the moment."""
+    from flapsim.bird.controller import Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget, _attitude_quat
+
+    path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
+    trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
+    tgt = PathTarget(trim, path, speed=7.0, ki_speed=0.0, ki_altitude=0.0, wind_memory_s=memory,
+                     wind=lambda p, t: np.array([0.0, 3.0 if t > 0.05 else 0.0, 0.0]))
+    v = np.array([7.0, 0.0, 0.0])
+    for i, p in enumerate((np.array([5.0, 0.0, 10.0]), np.array([5.7, 0.0, 10.0]))):
+        tgt.begin(p, v)
+        snap = type("S", (), {"physics": np.array([0.1 * i])})()
+        S = tgt(CycleEnd(snap, np.zeros(8), p + 0.1 * v, np.array([1.0, 0, 0, 0]), v, 0.1, 0.0))
+    w_crab = 3.0 * (1.0 - np.exp(-0.1 / memory)) if memory > 0 else 3.0
+    heading = -np.arcsin(w_crab / 7.0)
+    assert tgt.asked[-1][1] == pytest.approx(heading, abs=1e-3)
+    assert quat_distance(tgt.desired[-1][1], _attitude_quat(heading, trim.aoa, 0.0)) < 1e-3
+    # the ground speed asked: the air velocity (7 m/s along the heading) plus the 3 m/s wind
+    air = 7.0 * np.array([np.cos(heading), np.sin(heading), 0.0])
+    assert np.linalg.norm(S[2:5]) == pytest.approx(np.linalg.norm(air + [0.0, 3.0, 0.0]), abs=0.02)
+    with pytest.raises(InputError, match="wind memory"):
+        PathTarget(trim, path, wind_memory_s=-1.0)
+
+
 @pytest.mark.parametrize("lead", [0.0, 0.2])
 def test_the_bank_asked_is_the_recovery_curves_bank_lead_seconds_on(lead):
     # a bird 1 m left of a straight path along +x, flying along it at 7 m/s: the recovery
