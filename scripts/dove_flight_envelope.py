@@ -3,7 +3,11 @@ climbs of growing angle, each flown once with the bundled database (or --db), ju
 ``flapsim eval`` judges (lost = farther than 3 m from the path).
 
     PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--feathers modal] [--speed V]
-        [--aoa-per-g DEG] [--turn-g N [--turn-speed-floor V]] [--json out.json]
+        [--aoa-per-g DEG] [--turn-g N [--turn-speed-floor V]] [--both-ways] [--json out.json]
+
+``--both-ways`` flies each circle turning left and its mirror image turning right: near the
+controller's limits a verdict can flip with a change of a few hundredths of a m/s in the speed
+asked, so one flight per radius says little.
 """
 
 from __future__ import annotations
@@ -37,26 +41,36 @@ def main() -> None:
                     help="slow down ahead of turns needing more than N g (default 0: never)")
     ap.add_argument("--turn-speed-floor", type=float, default=None, metavar="V",
                     help="with --turn-g, the lowest speed asked, m/s (default 6.5)")
+    ap.add_argument("--both-ways", action="store_true",
+                    help="fly each circle turning left and, mirrored, turning right")
     ap.add_argument("--json", default=None)
     ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                     help="the dove (and, without --db, its bundled database)")
     a = ap.parse_args()
     rows = []
     cases = [("circle", float(r)) for r in a.radii.split(",")]
+    if a.both_ways:
+        cases += [("circle-right", float(r)) for r in a.radii.split(",")]
     cases += [("climb", float(c)) for c in a.climbs.split(",")]
     for kind, x in cases:
-        path = inclined_circle(radius_m=x, turns=1.0) if kind == "circle" else climb(x)
+        if kind == "climb":
+            path = climb(x)
+        else:
+            path = inclined_circle(radius_m=x, turns=1.0)
+            if kind == "circle-right":
+                path = FlightPath(path.points * np.array([1.0, -1.0, 1.0]))
         r = fly_task(Task(path, speed=a.speed, feathers=a.feathers, aoa_per_g_deg=a.aoa_per_g,
                           turn_load_factor=a.turn_g, turn_speed_floor=a.turn_speed_floor), a.db)
         m = r.metrics
-        bank = np.degrees(np.arctan(a.speed ** 2 / (9.81 * x))) if kind == "circle" else 0.0
+        bank = np.degrees(np.arctan(a.speed ** 2 / (9.81 * x))) if kind != "climb" else 0.0
         row = {"kind": kind, "value": x, "speed": a.speed, "turn_g": a.turn_g, "bank_needed_deg": bank,
                "status": r.status,
                "reason": r.reason, "max_path_distance": m.get("max_path_distance"),
                "Ef_per_wingbeat": m.get("Ef_per_wingbeat"), "progress_m": m["progress_m"],
                "length_m": path.length}
         rows.append(row)
-        what = f"radius {x:g} m (bank {bank:.0f} deg)" if kind == "circle" else f"climb {x:g} deg"
+        what = (f"climb {x:g} deg" if kind == "climb"
+                else f"radius {x:g} m{' right' if kind == 'circle-right' else ''} (bank {bank:.0f} deg)")
         print(f"{what:<28} {r.status:<10} max {row['max_path_distance']:.2f} m, "
               f"{row['progress_m']:.0f}/{path.length:.0f} m  {r.reason}", flush=True)
     if a.json:

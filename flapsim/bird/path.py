@@ -321,8 +321,13 @@ class PathTarget:
         ahead of a turn tighter than ``turn_load_factor`` allows at ``speed``."""
         if self.turn_load_factor == 0.0:
             return self.speed
-        ss = np.linspace(s, min(s + window_m, self.path.length), 41)
-        kappa = float(np.max(self.path.curvature(ss)))
+        # the sustained turn: curvature averaged over 2 m of arc (the natural spline's ends
+        # overshoot a circle's curvature by 20 % within a metre, which no bird needs to slow for)
+        end = min(s + window_m, self.path.length)
+        ss = np.arange(max(0.0, min(s, end - 2.0)), end + 0.125, 0.25)  # 2 m at least
+        k = self.path.curvature(np.clip(ss, 0.0, self.path.length))
+        n = min(8, len(k))
+        kappa = float(np.max(np.convolve(k, np.full(n, 1.0 / n), mode="valid")))
         if kappa <= 1e-9:
             return self.speed
         v = np.sqrt(GRAVITY * np.sqrt(self.turn_load_factor**2 - 1.0) / kappa)
