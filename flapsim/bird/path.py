@@ -268,8 +268,9 @@ class PathTarget:
     turn_load_factor: float = 0.0
     """Slowing for tight turns (0, the default: the speed asked is ``speed`` everywhere, the
     paper's). Otherwise ahead of a turn the speed asked drops to ``sqrt(g r sqrt(n^2 - 1))``,
-    the speed at which a level turn of the tightest radius ``r`` within the next two look-ahead
-    distances needs this load factor ``n``, but not below ``turn_speed_floor``. A turn's load
+    the speed at which a level turn of the tightest sustained radius ``r`` (curvature averaged
+    over 2 m of arc) within the next two look-ahead distances needs this load factor ``n``, but
+    not below ``turn_speed_floor``; a task starts at the speed asked where it starts. A turn's load
     factor grows with v^2 / r, and the wing holds little more than 1.2 g at 7 m/s
     (:mod:`flapsim.bird.limits`), so a bird turns tighter by flying slower there."""
     turn_speed_floor: float = 6.5
@@ -310,7 +311,8 @@ class PathTarget:
             raise InputError(f"the wind memory must be 0..60 s, got {self.wind_memory_s}")
         if not (np.isfinite(self.turn_load_factor)
                 and (self.turn_load_factor == 0.0 or 1.0 < self.turn_load_factor <= 5.0)):
-            raise InputError("the turns' load factor must be 0 (no slowing) or 1..5 g, got "
+            raise InputError("the turns' load factor must be 0 (no slowing) or above 1 and at most "
+                             "5 g, got "
                              f"{self.turn_load_factor}")
         if not (np.isfinite(self.turn_speed_floor) and 0.5 <= self.turn_speed_floor <= self.speed):
             raise InputError(f"the turns' lowest speed must be 0.5..{self.speed:g} m/s (the speed "
