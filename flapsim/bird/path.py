@@ -39,6 +39,8 @@ MAX_COORD_M = 1e5
 """Largest path coordinate, m (100 km: far beyond any flight; bounds the spline's samples)."""
 MAX_LENGTH_M = 1e6
 """Longest path, m (its 5 cm search samples then take ~0.5 GB at most)."""
+SUSTAINED_ARC_M = 2.0
+"""Arc over which a turn's curvature is averaged to call it sustained, m."""
 
 
 @dataclass(frozen=True)
@@ -127,6 +129,18 @@ class FlightPath:
         d1, d2 = self._spline(u, 1), self._spline(u, 2)
         return np.linalg.norm(np.cross(d1, d2), axis=-1) / np.linalg.norm(d1, axis=-1) ** 3
 
+    def sustained_curvature(self, lo: float = 0.0, hi: float | None = None,
+                            arc_m: float = SUSTAINED_ARC_M) -> float:
+        """The largest curvature averaged over ``arc_m`` of arc between arc lengths ``lo`` and
+        ``hi`` (at least ``arc_m`` of path, ending at ``hi``), 1/m: the turn a flier must hold,
+        not the spikes of the natural spline's ends (a circle's curvature overshoots by 21 %
+        within its first and last metre)."""
+        hi = self.length if hi is None else min(hi, self.length)
+        ss = np.arange(max(0.0, min(lo, hi - arc_m)), hi + 0.125, 0.25)
+        k = self.curvature(np.clip(ss, 0.0, self.length))
+        n = min(max(1, int(round(arc_m / 0.25))), len(k))
+        return float(np.max(np.convolve(k, np.full(n, 1.0 / n), mode="valid")))
+
     def geometry(self, step_m: float = 0.05) -> PathGeometry:
         """The path's tightest turn and steepest climb and descent, sampled every ``step_m``
         of arc length and at the spline's knots (a cubic spline's curvature peaks there: its
@@ -136,10 +150,12 @@ class FlightPath:
         kappa = self.curvature(s)
         climb = np.degrees(np.arcsin(np.clip(self.tangent(s)[:, 2], -1.0, 1.0)))
         i = int(np.argmax(kappa))
+        sustained = self.sustained_curvature()
         return PathGeometry(
             length_m=self.length,
             min_radius_m=float(1.0 / kappa[i]) if kappa[i] > 0 else float("inf"),
             min_radius_at_m=float(s[i]),
+            sustained_radius_m=float(1.0 / sustained) if sustained > 1e-9 else float("inf"),
             max_climb_deg=float(max(0.0, climb.max())),
             max_descent_deg=float(max(0.0, -climb.min())),
         )
@@ -155,6 +171,9 @@ class PathGeometry:
     """Smallest radius of curvature (3D: turns, pull-ups and their mix), m; inf if straight."""
     min_radius_at_m: float
     """Arc length where it is, m."""
+    sustained_radius_m: float
+    """Smallest radius held over 2 m of arc (:meth:`FlightPath.sustained_curvature`), m; inf
+    if straight: the turn a flier must sustain."""
     max_climb_deg: float
     """Steepest climb of the tangent above the horizontal, deg (0 if it never climbs)."""
     max_descent_deg: float
@@ -163,7 +182,10 @@ class PathGeometry:
     def as_dict(self) -> dict:
         return {"length_m": self.length_m,
                 "min_radius_m": self.min_radius_m if np.isfinite(self.min_radius_m) else None,
-                "min_radius_at_m": self.min_radius_at_m, "max_climb_deg": self.max_climb_deg,
+                "min_radius_at_m": self.min_radius_at_m,
+                "sustained_radius_m": (self.sustained_radius_m if np.isfinite(self.sustained_radius_m)
+                                       else None),
+                "max_climb_deg": self.max_climb_deg,
                 "max_descent_deg": self.max_descent_deg}
 
 
@@ -323,13 +345,8 @@ class PathTarget:
         ahead of a turn tighter than ``turn_load_factor`` allows at ``speed``."""
         if self.turn_load_factor == 0.0:
             return self.speed
-        # the sustained turn: curvature averaged over 2 m of arc (the natural spline's ends
-        # overshoot a circle's curvature by 20 % within a metre, which no bird needs to slow for)
-        end = min(s + window_m, self.path.length)
-        ss = np.arange(max(0.0, min(s, end - 2.0)), end + 0.125, 0.25)  # 2 m at least
-        k = self.path.curvature(np.clip(ss, 0.0, self.path.length))
-        n = min(8, len(k))
-        kappa = float(np.max(np.convolve(k, np.full(n, 1.0 / n), mode="valid")))
+        # the sustained turn, not the natural spline's end spikes, which no bird slows for
+        kappa = self.path.sustained_curvature(s, s + window_m)
         if kappa <= 1e-9:
             return self.speed
         v = np.sqrt(GRAVITY * np.sqrt(self.turn_load_factor**2 - 1.0) / kappa)

@@ -285,6 +285,9 @@ def print_table(results: list[dict]) -> None:
             elif r["scenario"] == "path" and m.get("path_geometry"):
                 g = m["path_geometry"]
                 radius = "straight" if g["min_radius_m"] is None else f"radius >= {g['min_radius_m']:.1f} m"
+                if m.get("sustained_turn_load_factor") is not None:
+                    radius += (f" (held over 2 m: {g['sustained_radius_m']:.1f} m, "
+                               f"{m['sustained_turn_load_factor']:.2f} g at {m['speed_asked']:g} m/s)")
                 note = (f"{radius}, climbs <= {g['max_climb_deg']:.1f} deg, descents <= "
                         f"{g['max_descent_deg']:.1f} deg" + (f"; {note}" if note else ""))
             elif "collisions" in m and r["scenario"] == "forest":

@@ -121,7 +121,16 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
                 plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0),
                 feathers=opt.feathers)
     r, files = _fly(sc, opt, task)
-    extra = {"path_geometry": path.geometry().as_dict()}
+    geometry = path.geometry()
+    extra = {"path_geometry": geometry.as_dict()}
+    if np.isfinite(geometry.sustained_radius_m):
+        # the level turn's load factor at the speed flown: sqrt(1 + (v^2 / (g r))^2)
+        from flapsim.bird.controller import GRAVITY
+
+        v = opt.speed if opt.speed is not None else task.speed
+        extra["sustained_turn_load_factor"] = float(
+            np.hypot(1.0, v**2 / (GRAVITY * geometry.sustained_radius_m)))
+        extra["speed_asked"] = float(v)
     if "capture_steering_deg" in p:
         extra["capture_steering_range_deg"] = capture_steering_range()
     return _result(r, files, **extra)

@@ -162,7 +162,12 @@ def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path, capsys):
     g = r["metrics"]["path_geometry"]
     assert g["max_climb_deg"] < 1e-6 and g["max_descent_deg"] < 1e-6
     assert 15.0 < g["min_radius_m"] < 25.5 and 30.0 < g["min_radius_at_m"] < 50.0, g
-    assert "radius >= " in capsys.readouterr().out
+    # the turn held over 2 m and its load factor at 7 m/s, sqrt(1 + (v^2 / (g r))^2)
+    assert g["min_radius_m"] <= g["sustained_radius_m"] < 25.5
+    assert r["metrics"]["sustained_turn_load_factor"] == pytest.approx(
+        np.hypot(1.0, 49.0 / (9.81 * g["sustained_radius_m"])), rel=1e-9)
+    out = capsys.readouterr().out
+    assert "radius >= " in out and "held over 2 m" in out
 
 
 @pytest.mark.slow
