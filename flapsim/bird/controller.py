@@ -329,9 +329,9 @@ def trim_of_base_flight(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig | None
     """Mean start-of-wingbeat state of the base controller over ``wingbeats`` after ``skip``,
     flown in still air whatever the flight's wind: the target adds the wind to the air-relative
     trim (:func:`target_state`). Flown in a 2 m/s crosswind from a start along +x, the base
-    flight sideslipped, its mean body-frame velocity turned 8 deg nose-up of the still-air
-    trim's, and every wingbeat then asked that much more angle of attack: the dove slowed to
-    ~4.5 m/s and did not reach the 40 m path's end in time."""
+    flight sideslipped, and its mean body-frame velocity put the angle of attack at 8.2 deg
+    against the still-air trim's 2.8: every wingbeat then asked 5.4 deg more angle of attack,
+    the dove slowed to ~4.5 m/s and did not reach the 40 m path's end in time."""
     states = []
     with fl.flow.still():
         fl.reset(cfg or FlightConfig(), P0)
