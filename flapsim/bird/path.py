@@ -281,6 +281,12 @@ class PathTarget:
     (README, "Asking the bank ahead")."""
     max_climb_deg: float = 15.0
     """Largest climb/descent angle asked, deg."""
+    climb_per_speed_deficit: float = 0.0
+    """Speed first: the climb asked drops this much per m/s of airspeed below the speed asked,
+    rad s/m (0: the speed and height loops are independent, as before). With too little thrust
+    to climb at the speed asked, the height loop asked more climb as the bird fell behind, and
+    the nose-up wingbeats traded the rest of the speed away: on a 7 deg, 80 m climb the dove
+    slowed from 7 to 2.7 m/s and did not finish in time."""
     aoa_per_g_deg: float = 0.0
     """The nose is asked this much higher above the flight path per g of the turn's load
     factor above 1, deg (:func:`~flapsim.bird.controller.target_state`'s ``aoa_per_g``; 0: the
@@ -329,6 +335,9 @@ class PathTarget:
                              f"got {self.bank_lead_s}")
         if not (np.isfinite(self.aoa_per_g_deg) and 0.0 <= self.aoa_per_g_deg <= 90.0):
             raise InputError(f"the angle of attack per g must be 0..90 deg, got {self.aoa_per_g_deg}")
+        if not (np.isfinite(self.climb_per_speed_deficit) and 0.0 <= self.climb_per_speed_deficit <= 1.0):
+            raise InputError("the climb given up per m/s of missing airspeed must be 0..1 rad s/m, "
+                             f"got {self.climb_per_speed_deficit}")
         if not (np.isfinite(self.wind_memory_s) and 0.0 <= self.wind_memory_s <= 60.0):
             raise InputError(f"the wind memory must be 0..60 s, got {self.wind_memory_s}")
         if not (np.isfinite(self.turn_load_factor)
@@ -401,6 +410,7 @@ class PathTarget:
         va = s_ground * d - w_crab  # through the (steady part of the) air
         heading = float(np.arctan2(va[1], va[0]))
         vz = float(va[2]) + self.ki_altitude * self.integrals[1]
+        vz -= self.climb_per_speed_deficit * max(0.0, e_v) * speed  # speed first
         climb = float(np.clip(np.arcsin(np.clip(vz / max(speed, 1e-3), -1, 1)),
                               -np.radians(self.max_climb_deg), np.radians(self.max_climb_deg)))
         lim_bank = np.radians(self.max_bank_deg)

@@ -27,17 +27,23 @@ from flapsim.bird import cycle
 from flapsim.bird.path import FlightPath, PathTarget, path_metrics, start_on_path
 from flapsim.errors import InputError, SimulationError
 
-#: Unit push directions in the bird's heading frame: (forward, left, up) components.
 #: The path target's default extra angle of attack per g of a turn's load factor, deg, per
 #: dove (:attr:`~flapsim.bird.path.PathTarget.aoa_per_g_deg`; README, "Carrying the last
 #: wingbeat"): measured with the dove's carry over five databases each (modal feathers keep
 #: 0 with their carry of 0).
 DEFAULT_AOA_PER_G_DEG = {"rigid": 30.0, "modal": 0.0}
 
+#: The path target's default climb given up per m/s of missing airspeed, rad s/m, per dove
+#: (:attr:`~flapsim.bird.path.PathTarget.climb_per_speed_deficit`; README, "Speed first"):
+#: 0 for both, measured over the five rigid databases (0.1 completes the 7 deg climb and one
+#: scenario more on the bundled database, but fewer over the five: 14.2 of 22 against 14.8).
+DEFAULT_CLIMB_PER_SPEED_DEFICIT = {"rigid": 0.0, "modal": 0.0}
+
 #: The reference wingbeat's period, s (the capture's mean cycle, 0.1076 s): the unit of the
 #: flight time a task allows beyond its path's own.
 REFERENCE_PERIOD_S = 0.1075
 
+#: Unit push directions in the bird's heading frame: (forward, left, up) components.
 PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
     "front": (1.0, 0.0, 0.0), "back": (-1.0, 0.0, 0.0), "left": (0.0, 1.0, 0.0),
     "right": (0.0, -1.0, 0.0), "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0),
@@ -136,12 +142,21 @@ class Task:
     aoa_per_g_deg: float | None = None
     """The path target asks this much more angle of attack per g of a turn's load factor,
     deg (None: the dove's default, :data:`DEFAULT_AOA_PER_G_DEG`; 0: the paper's)."""
+    climb_per_speed_deficit: float | None = None
+    """The climb asked drops this much per m/s of airspeed below the speed asked, rad s/m
+    (None: the dove's default, :data:`DEFAULT_CLIMB_PER_SPEED_DEFICIT`; 0: independent speed
+    and height loops, the paper's)."""
     turn_load_factor: float = 0.0
     """The speed asked drops ahead of turns that would need more than this load factor at
     ``speed`` (0: no slowing, the paper's; :attr:`~flapsim.bird.path.PathTarget.turn_load_factor`)."""
     turn_speed_floor: float | None = None
     """The lowest speed asked for a turn, m/s (None: the path target's, 6.5 m/s, or ``speed``
     when that is lower)."""
+
+
+def default_climb_per_speed_deficit(feathers: str, asked: float | None = None) -> float:
+    """``asked``, or the dove's default climb given up per m/s of missing airspeed."""
+    return float(DEFAULT_CLIMB_PER_SPEED_DEFICIT.get(feathers, 0.0) if asked is None else asked)
 
 
 def default_aoa_per_g(feathers: str, asked: float | None = None) -> float:
@@ -223,6 +238,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         lead = {} if task.bank_lead_s is None else {"bank_lead_s": float(task.bank_lead_s)}
         lead["aoa_per_g_deg"] = default_aoa_per_g(task.feathers, task.aoa_per_g_deg)
+        lead["climb_per_speed_deficit"] = default_climb_per_speed_deficit(
+            task.feathers, task.climb_per_speed_deficit)
         lead["turn_load_factor"] = float(task.turn_load_factor)
         lead["turn_speed_floor"] = float(min(task.speed, PathTarget.turn_speed_floor)
                                          if task.turn_speed_floor is None else task.turn_speed_floor)

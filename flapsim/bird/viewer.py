@@ -102,7 +102,13 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
     from flapsim.bird.controller import CruiseTarget, start_cruise, trim_of_base_flight
     from flapsim.bird.flight import FlightConfig
     from flapsim.bird.path import PathTarget, start_on_path
-    from flapsim.bird.tasks import PushSpec, Task, build_flight, default_aoa_per_g
+    from flapsim.bird.tasks import (
+        PushSpec,
+        Task,
+        build_flight,
+        default_aoa_per_g,
+        default_climb_per_speed_deficit,
+    )
 
     # a gust primitive that is inert (zero amplitude) until Delete re-packs it in place
     fl, ctl = build_flight(Task(path if path is not None else _dummy_path(),
@@ -116,7 +122,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         if path is not None:
             start_on_path(fl, ctl.P0, path, cmd.speed)
             target = PathTarget(trim, path, speed=cmd.speed,
-                                aoa_per_g_deg=default_aoa_per_g(feathers))
+                                aoa_per_g_deg=default_aoa_per_g(feathers),
+                                climb_per_speed_deficit=default_climb_per_speed_deficit(feathers))
         else:
             start_cruise(fl, ctl.P0, cfg)
             target = CruiseTarget(trim, altitude=cfg.height, speed=cmd.speed)

@@ -84,6 +84,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="flight: the path target asks DEG more angle of attack per g of a turn's "
                         "load factor (default 30 for rigid feathers, 0 for modal ones; 0: the "
                         "paper's; see the README)")
+    p.add_argument("--speed-first", type=float, default=None, metavar="K",
+                   help="flight: the climb asked drops K rad per m/s of airspeed below the speed "
+                        "asked (default 0: independent speed and height loops, the paper's; "
+                        "see the README, \"Speed first\")")
     p.add_argument("--turn-g", type=float, default=None, metavar="N",
                    help="flight: slow down ahead of turns that would need more than N g at the "
                         "speed asked, to the speed where they need N (0: never, the paper's; "
@@ -175,6 +179,9 @@ def run(args: argparse.Namespace) -> dict:
     aoa = getattr(args, "aoa_per_g", None)
     if aoa is not None and not (math.isfinite(aoa) and 0.0 <= aoa <= 90.0):
         raise InputError(f"--aoa-per-g must be 0..90 deg, got {aoa}")
+    speed_first = getattr(args, "speed_first", None)
+    if speed_first is not None and not (math.isfinite(speed_first) and 0.0 <= speed_first <= 1.0):
+        raise InputError(f"--speed-first must be 0..1 rad per m/s, got {speed_first}")
     turn_g = getattr(args, "turn_g", None)
     if turn_g is not None and not (math.isfinite(turn_g) and (turn_g == 0.0 or 1.0 < turn_g <= 5.0)):
         raise InputError(f"--turn-g must be 0 (no slowing) or above 1 and at most 5 g, got {turn_g}")
@@ -188,6 +195,7 @@ def run(args: argparse.Namespace) -> dict:
                                  clip_request=args.clip_request, state_weight=args.state_weight,
                                  predict=args.predict, bank_lead_s=args.bank_lead,
                                  speed=speed, aoa_per_g_deg=aoa, turn_load_factor=turn_g,
+                                 climb_per_speed_deficit=speed_first,
                                  turn_speed_floor=floor, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
@@ -404,6 +412,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.k_dense = 0  # the paper's fixed neighbourhood: the sweep is over k itself
         o.bank_lead_s = 0.0  # the paper's path controller: the bank of the wingbeat's end
         o.aoa_per_g_deg, o.speed, o.carry, o.turn_load_factor = 0.0, None, 0.0, 0.0
+        o.climb_per_speed_deficit = 0.0
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
     base = 10000 if 10000 in dbs else max(dbs)
@@ -415,6 +424,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         o.k_dense = 0
         o.bank_lead_s = 0.0
         o.aoa_per_g_deg, o.speed, o.carry, o.turn_load_factor = 0.0, None, 0.0, 0.0
+        o.climb_per_speed_deficit = 0.0
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)

@@ -85,6 +85,9 @@ class EvalOptions:
     aoa_per_g_deg: float | None = None
     """Flight: the path target asks this much more angle of attack per g of a turn's load
     factor, deg (None: the dove's default, :data:`flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG`)."""
+    climb_per_speed_deficit: float | None = None
+    """Flight: the climb given up per m/s of missing airspeed, rad s/m (None: the dove's
+    default, :data:`flapsim.bird.tasks.DEFAULT_CLIMB_PER_SPEED_DEFICIT`; 0: the paper's)."""
     turn_load_factor: float | None = None
     """Flight: the speed asked drops ahead of turns needing more than this load factor
     (None: the task's, 0 = no slowing; :attr:`flapsim.bird.tasks.Task.turn_load_factor`)."""

@@ -62,6 +62,8 @@ def _fly_task(task, opt: EvalOptions, record: bool):
         task = dataclasses.replace(task, speed=opt.speed)
     if opt.aoa_per_g_deg is not None:
         task = dataclasses.replace(task, aoa_per_g_deg=opt.aoa_per_g_deg)
+    if opt.climb_per_speed_deficit is not None:
+        task = dataclasses.replace(task, climb_per_speed_deficit=opt.climb_per_speed_deficit)
     if opt.turn_load_factor is not None:
         task = dataclasses.replace(task, turn_load_factor=opt.turn_load_factor)
     if opt.turn_speed_floor is not None:

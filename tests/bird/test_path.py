@@ -278,6 +278,34 @@ def test_in_a_crosswind_the_bird_crabs_so_that_its_ground_track_is_the_path():
     assert np.linalg.norm(S[2:5]) == pytest.approx(np.sqrt(45.0), abs=0.02)
 
 
+@pytest.mark.parametrize("k", [0.0, 0.1])
+def test_short_of_airspeed_the_climb_asked_gives_way(k):
+    """Speed first: on a 7 deg climb, a bird on the path along its tangent at 5 m/s while
+    7 m/s is asked (speed integral off) is asked the climb whose vertical speed is the path's,
+    7 sin 7 deg, less k x (7 - 5) x 7: for k = 0.1 asin((0.853 - 1.4) / 7) = -4.5 deg, a
+    gentle descent to win back speed; k = 0 (and any bird at the speed asked) gets 7 deg."""
+    from flapsim.bird.controller import Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget
+
+    a = np.radians(7.0)
+    u = np.array([np.cos(a), 0.0, np.sin(a)])
+    path = FlightPath(np.array([[0, 0, 10.0], *(np.array([0, 0, 10.0]) + 100 * u[None])]))
+    trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
+    snap = type("S", (), {"physics": np.zeros(1)})()
+    for speed_now, want in ((5.0, np.arcsin((7.0 * np.sin(a) - k * 2.0 * 7.0) / 7.0)), (7.0, a)):
+        tgt = PathTarget(trim, path, speed=7.0, ki_speed=0.0, ki_altitude=0.0,
+                         climb_per_speed_deficit=k)
+        p, v = np.array([0, 0, 10.0]) + 5.0 * u, speed_now * u
+        tgt.begin(p, v)
+        tgt(CycleEnd(snap, np.zeros(8), p + 0.1 * v, np.array([1.0, 0, 0, 0]), v, 0.1, 0.0))
+        expected = a if k == 0.0 else want
+        # tolerance: the closest point's 5 cm samples, weighted < 0.03 by the Hermite basis
+        assert tgt.asked[-1][2] == pytest.approx(expected, abs=2e-3)
+    with pytest.raises(InputError, match="missing airspeed"):
+        PathTarget(trim, path, climb_per_speed_deficit=-0.1)
+
+
 @pytest.mark.parametrize("memory", [0.0, 1.0])
 def test_the_bird_crabs_into_the_winds_lagged_average_and_is_carried_by_the_rest(memory):
     """Still air for the first wingbeat, then a 3 m/s wind from the right across a path along
@@ -414,6 +442,7 @@ def test_ahead_of_a_tight_turn_the_speed_asked_is_where_it_needs_the_load_factor
 
 def test_turn_g_options_get_one_line_errors(capsys):
     for args, msg in ((["--turn-g", "0.9"], "--turn-g must be 0"),
+                      (["--speed-first", "2"], "--speed-first must be 0..1"),
                       (["--turn-g", "1.3", "--turn-speed-floor", "9"], "--turn-speed-floor must be")):
         assert main(["eval", "--scenario", "figure8-level", *args]) != 0
         err = capsys.readouterr().err.strip()
