@@ -35,8 +35,9 @@ DEFAULT_AOA_PER_G_DEG = {"rigid": 30.0, "modal": 0.0}
 
 #: The path target's default climb given up per m/s of missing airspeed, rad s/m, per dove
 #: (:attr:`~flapsim.bird.path.PathTarget.climb_per_speed_deficit`; README, "Speed first"):
-#: 0 for both, measured over the five rigid databases (0.1 completes the 7 deg climb and one
-#: scenario more on the bundled database, but fewer over the five: 14.2 of 22 against 14.8).
+#: 0 for both, measured over the five rigid databases (0.1 and 0.05 complete the 7 deg climb
+#: and one scenario more on the bundled database, but over the five 14.2 and 14.8 of 22
+#: against 14.8, and seed 4 loses the figure of eight with either).
 DEFAULT_CLIMB_PER_SPEED_DEFICIT = {"rigid": 0.0, "modal": 0.0}
 
 #: The reference wingbeat's period, s (the capture's mean cycle, 0.1076 s): the unit of the
