@@ -155,14 +155,18 @@ class Task:
     when that is lower)."""
 
 
+def _per_dove(table: dict, feathers: str, asked: float | None) -> float:
+    return float(table.get(feathers, 0.0) if asked is None else asked)
+
+
 def default_climb_per_speed_deficit(feathers: str, asked: float | None = None) -> float:
     """``asked``, or the dove's default climb given up per m/s of missing airspeed."""
-    return float(DEFAULT_CLIMB_PER_SPEED_DEFICIT.get(feathers, 0.0) if asked is None else asked)
+    return _per_dove(DEFAULT_CLIMB_PER_SPEED_DEFICIT, feathers, asked)
 
 
 def default_aoa_per_g(feathers: str, asked: float | None = None) -> float:
     """``asked``, or the dove's default extra angle of attack per g (deg)."""
-    return float(DEFAULT_AOA_PER_G_DEG.get(feathers, 0.0) if asked is None else asked)
+    return _per_dove(DEFAULT_AOA_PER_G_DEG, feathers, asked)
 
 
 @dataclass

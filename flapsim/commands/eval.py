@@ -356,6 +356,14 @@ def _is_bundled_run(config, n: int) -> bool:
                              for k in ("kind", "worker", "config_class", "config", "seed"))
 
 
+def _paper_protocol(o) -> None:
+    """Table I's runs fly the paper's controller whatever else was asked: k fixed (the sweep is
+    over k itself), the bank of the wingbeat's end, P0 every wingbeat, the trim's angle of
+    attack in turns, the speed asked everywhere and independent speed and height loops."""
+    o.k_dense, o.bank_lead_s, o.carry = 0, 0.0, 0.0
+    o.aoa_per_g_deg, o.speed, o.turn_load_factor, o.climb_per_speed_deficit = 0.0, None, 0.0, 0.0
+
+
 def _table1(args: argparse.Namespace, opts) -> dict:
     """Train (or reuse) the phase-1 databases and fly the scenario with each."""
     import copy
@@ -409,10 +417,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     for n in sizes:
         o = copy.copy(opts)
         o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
-        o.k_dense = 0  # the paper's fixed neighbourhood: the sweep is over k itself
-        o.bank_lead_s = 0.0  # the paper's path controller: the bank of the wingbeat's end
-        o.aoa_per_g_deg, o.speed, o.carry, o.turn_load_factor = 0.0, None, 0.0, 0.0
-        o.climb_per_speed_deficit = 0.0
+        _paper_protocol(o)
         runs.append((name, o))
         labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
     base = 10000 if 10000 in dbs else max(dbs)
@@ -421,10 +426,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
             continue
         o = copy.copy(opts)
         o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
-        o.k_dense = 0
-        o.bank_lead_s = 0.0
-        o.aoa_per_g_deg, o.speed, o.carry, o.turn_load_factor = 0.0, None, 0.0, 0.0
-        o.climb_per_speed_deficit = 0.0
+        _paper_protocol(o)
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
     results = execute(runs, args.workers, args.backend, args.address)

@@ -50,24 +50,19 @@ def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
     return r, files
 
 
+_TASK_OPTIONS = ("bank_lead_s", "speed", "aoa_per_g_deg", "climb_per_speed_deficit",
+                 "turn_load_factor", "turn_speed_floor")
+
+
 def _fly_task(task, opt: EvalOptions, record: bool):
     """:func:`~flapsim.bird.tasks.fly_task` with the options' controller."""
     import dataclasses
 
     from flapsim.bird.tasks import fly_task
 
-    if opt.bank_lead_s is not None:
-        task = dataclasses.replace(task, bank_lead_s=opt.bank_lead_s)
-    if opt.speed is not None:
-        task = dataclasses.replace(task, speed=opt.speed)
-    if opt.aoa_per_g_deg is not None:
-        task = dataclasses.replace(task, aoa_per_g_deg=opt.aoa_per_g_deg)
-    if opt.climb_per_speed_deficit is not None:
-        task = dataclasses.replace(task, climb_per_speed_deficit=opt.climb_per_speed_deficit)
-    if opt.turn_load_factor is not None:
-        task = dataclasses.replace(task, turn_load_factor=opt.turn_load_factor)
-    if opt.turn_speed_floor is not None:
-        task = dataclasses.replace(task, turn_speed_floor=opt.turn_speed_floor)
+    # the path target's options given (None: the task's own), by the same names on both
+    given = {name: getattr(opt, name) for name in _TASK_OPTIONS if getattr(opt, name) is not None}
+    task = dataclasses.replace(task, **given)
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
                     clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict,
                     k_dense=opt.k_dense, carry=opt.carry)

@@ -318,3 +318,17 @@ def test_eval_options_reach_every_flight(monkeypatch):
     assert (seen[0].speed, seen[0].bank_lead_s, seen[0].aoa_per_g_deg) == (7.0, None, None)
     assert (seen[1].speed, seen[1].bank_lead_s, seen[1].aoa_per_g_deg) == (5.5, 0.1, 30.0)
     assert dataclasses.replace(seen[1], speed=7.0, bank_lead_s=None, aoa_per_g_deg=None) == task
+
+
+def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
+    """Every Table I run is the paper's protocol (sec. 7): k fixed, the bank of the wingbeat's
+    end, P0 every wingbeat, the trim's angle of attack in turns, the speed asked everywhere,
+    independent speed and height loops; what the run was asked otherwise is overridden."""
+    from flapsim.commands.eval import _paper_protocol
+    from flapsim.scenarios import EvalOptions
+
+    o = EvalOptions(k_dense=100, bank_lead_s=0.3, carry=0.4, aoa_per_g_deg=30.0, speed=6.0,
+                    turn_load_factor=1.25, climb_per_speed_deficit=0.1)
+    _paper_protocol(o)
+    assert (o.k_dense, o.bank_lead_s, o.carry, o.aoa_per_g_deg, o.speed, o.turn_load_factor,
+            o.climb_per_speed_deficit) == (0, 0.0, 0.0, 0.0, None, 0.0, 0.0)
