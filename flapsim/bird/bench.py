@@ -201,7 +201,8 @@ def run_train(args: argparse.Namespace) -> dict:
 def run_controller(args: argparse.Namespace) -> dict:
     """``flapsim bench controller [--feathers modal]``: the learned controller's cruise in
     real-time factor (S0
-    simulated every wingbeat, the default, ``predict="coarse"`` and ``predict="regression"``),
+    simulated every wingbeat, the default, ``predict="coarse"`` and ``predict="regression"``;
+    with 0, 1 and 2 simulated corrections per wingbeat),
     what a controlled wingbeat costs against a base wingbeat (the P0 prediction, the regression
     and the flown wingbeat), and each against a bare ``mujoco.rollout`` of P0 (the floor: no controller, no
     Python), all in the same run."""
@@ -229,10 +230,11 @@ def run_controller(args: argparse.Namespace) -> dict:
         ctl = load_controller(fl, db)
         coarse = load_controller(fl, db, predict="coarse")
         reg = attach_predictor(load_controller(fl, db), db)
+        refined = [(f"learned_refine{r}", load_controller(fl, db, refine=r)) for r in (0, 1, 2)]
         trim = trim_of_base_flight(fl, ctl.P0)
         res = {}
         for name, c in (("learned", ctl), ("learned_coarse", coarse), ("learned_regression", reg),
-                        ("base", BaseController(fl, ctl.P0))):
+                        *refined, ("base", BaseController(fl, ctl.P0))):
             start_cruise(fl, ctl.P0)
             fly_controlled(c, CruiseTarget(trim, altitude=10.0), 1)  # warm-up: the coarse twin
             start_cruise(fl, ctl.P0)
@@ -268,6 +270,8 @@ def run_controller(args: argparse.Namespace) -> dict:
         "real_time_factor": res["learned"]["real_time_factor"],
         "real_time_factor_coarse": res["learned_coarse"]["real_time_factor"],
         "real_time_factor_regression": res["learned_regression"]["real_time_factor"],
+        "refine": ctl.refine,
+        "real_time_factor_refine": {r: res[f"learned_refine{r}"]["real_time_factor"] for r in (0, 1, 2)},
         "cost_over_base": res["base"]["real_time_factor"] / res["learned"]["real_time_factor"],
         "over_bare_rollout": {k: v["real_time_factor"] / bare for k, v in res.items()},
         "regression_ms": query_ms,
@@ -280,6 +284,9 @@ def run_controller(args: argparse.Namespace) -> dict:
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
     print(f"  --predict coarse: {out['real_time_factor_coarse']:.1f}x real time; --predict regression: "
           f"{out['real_time_factor_regression']:.1f}x")
+    rf = out["real_time_factor_refine"]
+    print(f"  --refine 0 / 1 / 2 (default {ctl.refine}): {rf[0]:.1f}x / {rf[1]:.1f}x / "
+          f"{rf[2]:.1f}x real time")
     print(f"  against a bare rollout of the reference wingbeat ({bare:.1f}x real time): learned "
           f"{r['learned']:.2f}, --predict coarse {r['learned_coarse']:.2f}, --predict regression "
           f"{r['learned_regression']:.2f}, "

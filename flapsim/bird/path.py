@@ -308,6 +308,10 @@ class PathTarget:
     """Progress along the path (arc length of the last closest point), m."""
     integrals: np.ndarray = field(default_factory=lambda: np.zeros(2))
     """Running integrals of (speed, height) errors."""
+    speed_surplus: float = 0.0
+    """The speed the last target asked above the speed asked by the integral, m/s (a
+    wingbeat controller that checks its wingbeats by simulation judges the speed without it:
+    :attr:`~flapsim.bird.controller.WingbeatController.refine`)."""
     desired: list = field(default_factory=list)
     """(position, quaternion) the recovery curve has at the end of each wingbeat, for the
     evaluation."""
@@ -361,6 +365,30 @@ class PathTarget:
         v = np.sqrt(GRAVITY * np.sqrt(self.turn_load_factor**2 - 1.0) / kappa)
         return float(np.clip(v, self.turn_speed_floor, self.speed))
 
+    def flight_time(self, step_m: float = 0.5, wing_load_factor: float | None = None) -> float:
+        """Seconds the whole path takes at the speeds asked (:meth:`speed_for` along it, with
+        the window :meth:`__call__` uses): ``length / speed`` without ``turn_load_factor``.
+        ``wing_load_factor`` n: nowhere faster than the speed at which a level turn of the
+        path's sustained radius there needs n (a wing that holds n g flies such a turn no
+        faster, whatever it is asked)."""
+        if self.turn_load_factor == 0.0 and wing_load_factor is None:
+            return self.path.length / self.speed
+        if wing_load_factor is not None and not (np.isfinite(wing_load_factor) and wing_load_factor > 1.0):
+            raise InputError(f"a wing's load factor must be above 1, got {wing_load_factor}")
+        n = max(1, int(np.ceil(self.path.length / step_m)))
+        ds = self.path.length / n
+        window = 2.0 * self.lookahead_s * self.speed
+        total = 0.0
+        for i in range(n):
+            s = (i + 0.5) * ds
+            v = self.speed_for(s, window)
+            if wing_load_factor is not None:
+                kappa = self.path.sustained_curvature(s, s + SUSTAINED_ARC_M)
+                if kappa > 1e-9:
+                    v = min(v, float(np.sqrt(GRAVITY * np.sqrt(wing_load_factor**2 - 1.0) / kappa)))
+            total += ds / v
+        return float(total)
+
     def begin(self, position: np.ndarray, velocity: np.ndarray) -> None:
         """The bird's trunk position and centre-of-mass velocity as the wingbeat begins: where
         the recovery curve starts, as the paper says (call it before every wingbeat)."""
@@ -402,6 +430,7 @@ class PathTarget:
         lim = np.array([2.0 / max(self.ki_speed, 1e-9), 1.0 / max(self.ki_altitude, 1e-9)])
         self.integrals = np.clip(self.integrals + dt * np.array([e_v, e_z]), -lim, lim)
         speed = v_ref + self.ki_speed * self.integrals[0]
+        self.speed_surplus = self.ki_speed * float(self.integrals[0])
         # the ground track asked (vd's direction), flown at airspeed ``speed``: ground speed s
         # along the unit track d with |s d - w| = speed
         d = vd / max(float(np.linalg.norm(vd)), 1e-9)

@@ -41,7 +41,8 @@ def push_note(table: list[dict]) -> str:
 
 
 def check_regression_options(args: argparse.Namespace) -> None:
-    """--clip-request, --state-weight, --k-dense and --carry (fly, eval, view): one-line errors."""
+    """--clip-request, --state-weight, --k-dense, --carry and --refine (fly, eval, view):
+    one-line errors."""
     import math
 
     q, w = args.clip_request, args.state_weight
@@ -57,6 +58,11 @@ def check_regression_options(args: argparse.Namespace) -> None:
         raise InputError(f"--carry must be a share 0..1, got {c}")
     if c and getattr(args, "predict", "simulate") == "regression":
         raise InputError("--carry needs S0 simulated (--predict simulate or coarse)")
+    n = getattr(args, "refine", None)
+    from flapsim.bird.controller import MAX_REFINE
+
+    if n is not None and not 0 <= n <= MAX_REFINE:
+        raise InputError(f"--refine must be 0..{MAX_REFINE} simulated corrections per wingbeat, got {n}")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -190,7 +196,7 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--turn-speed-floor must be 3 m/s..the speed asked ({speed or 7.0:g}), "
                          f"got {floor}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
-                                 carry=args.carry,
+                                 carry=args.carry, refine=args.refine,
                                  mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
                                  predict=args.predict, bank_lead_s=args.bank_lead,
@@ -359,8 +365,9 @@ def _is_bundled_run(config, n: int) -> bool:
 def _paper_protocol(o) -> None:
     """Table I's runs fly the paper's controller whatever else was asked: k fixed (the sweep is
     over k itself), the bank of the wingbeat's end, P0 every wingbeat, the trim's angle of
-    attack in turns, the speed asked everywhere and independent speed and height loops."""
-    o.k_dense, o.bank_lead_s, o.carry = 0, 0.0, 0.0
+    attack in turns, the speed asked everywhere, independent speed and height loops and the
+    regression's answer flown as it is."""
+    o.k_dense, o.bank_lead_s, o.carry, o.refine = 0, 0.0, 0.0, 0
     o.aoa_per_g_deg, o.speed, o.turn_load_factor, o.climb_per_speed_deficit = 0.0, None, 0.0, 0.0
 
 

@@ -37,6 +37,11 @@ def add_regression_arguments(p: argparse.ArgumentParser) -> None:
                    help="share of the last wingbeat's change from the reference wingbeat that the "
                         "next one starts from (default 0.4 for rigid feathers, 0 for modal ones; "
                         "0: the reference every wingbeat, the paper's; see the README)")
+    p.add_argument("--refine", type=int, default=None, metavar="N",
+                   help="simulate the regression's wingbeat before flying it and, where it would "
+                        "end short of the target, ask again for the shortfall, N times; the wingbeat "
+                        "that ends nearest the target is flown (default: the dove's, see the README; "
+                        "0: flown as answered, the paper's). Each costs one wingbeat's simulation")
     p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper), simulate it at a "
@@ -191,7 +196,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
             ctl = load_controller(fl, args.db, method=args.method, k=args.k,
                                   predict=getattr(args, "predict", "simulate"), mirror=args.mirror,
                                   clip_request=args.clip_request, state_weight=args.state_weight,
-                                  k_dense=args.k_dense, carry=args.carry)
+                                  k_dense=args.k_dense, carry=args.carry, refine=args.refine)
         else:
             ctl = BaseController(fl, with_tail_bias(p0(), cfg.tail_bias_deg))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
@@ -215,6 +220,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
         "predict": getattr(ctl, "predict", None),
         "k": getattr(getattr(ctl, "regressor", None), "k", None),
         "database_samples": getattr(getattr(ctl, "regressor", None), "n", None),
+        "refine": getattr(ctl, "refine", None),
         "config": {"speed": cfg.speed, "pitch_deg": cfg.pitch_deg, "roll_deg": args.roll_deg,
                    "tail_bias_deg": cfg.tail_bias_deg, "table": cfg.table,
                    "altitude": cfg.height, "timestep": float(dove.model.opt.timestep)},
@@ -241,7 +247,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
                  record=bool(args.video or args.out), clip_request=args.clip_request,
                  state_weight=args.state_weight, predict=predict, k_dense=args.k_dense,
-                 carry=args.carry)
+                 carry=args.carry, refine=args.refine)
     m = r.metrics
     completed = r.status == "completed"
     result = {
@@ -250,7 +256,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
         "progress": m["progress_m"], "model_hash": r.model_hash, "method": args.method, "mirror": args.mirror,
         "clip_request": args.clip_request, "state_weight": args.state_weight,
         "predict": predict,
-        "k": r.k, "database_samples": r.database_samples,
+        "k": r.k, "database_samples": r.database_samples, "refine": r.refine,
         "db": str(args.db) if args.db else "bundled", **m,
     }
     print(f"dove, learned controller along {args.path} ({path.length:.1f} m): "

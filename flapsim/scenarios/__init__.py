@@ -68,6 +68,10 @@ class EvalOptions:
     carry: float | None = None
     """Flight: the share of the last wingbeat's change the next one starts from (None: the
     controller's default, :data:`flapsim.bird.controller.DEFAULT_CARRY`; 0: the paper's)."""
+    refine: int | None = None
+    """Flight: simulated corrections per wingbeat (None: the controller's default,
+    :data:`flapsim.bird.controller.DEFAULT_REFINE`; 0: the regression's answer flown as it
+    is, the paper's)."""
     clip_request: float = 0.02
     """Flight: the regression clips each requested dS component to these quantiles of the
     database's (0: no clip; the default is

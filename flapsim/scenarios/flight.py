@@ -65,7 +65,7 @@ def _fly_task(task, opt: EvalOptions, record: bool):
     task = dataclasses.replace(task, **given)
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
                     clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict,
-                    k_dense=opt.k_dense, carry=opt.carry)
+                    k_dense=opt.k_dense, carry=opt.carry, refine=opt.refine)
 
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:

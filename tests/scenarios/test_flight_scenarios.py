@@ -328,7 +328,7 @@ def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
     from flapsim.scenarios import EvalOptions
 
     o = EvalOptions(k_dense=100, bank_lead_s=0.3, carry=0.4, aoa_per_g_deg=30.0, speed=6.0,
-                    turn_load_factor=1.25, climb_per_speed_deficit=0.1)
+                    turn_load_factor=1.25, climb_per_speed_deficit=0.1, refine=2)
     _paper_protocol(o)
     assert (o.k_dense, o.bank_lead_s, o.carry, o.aoa_per_g_deg, o.speed, o.turn_load_factor,
-            o.climb_per_speed_deficit) == (0, 0.0, 0.0, 0.0, None, 0.0, 0.0)
+            o.climb_per_speed_deficit, o.refine) == (0, 0.0, 0.0, 0.0, None, 0.0, 0.0, 0)
