@@ -41,7 +41,10 @@ def _summary(r) -> dict:
             "path_length_m", "collisions", "steering_range_deg", "path_steering_range_deg",
             "elevation_range_deg",
             "real_time_factor", "min_tree_clearance")
-    return {k: r.metrics[k] for k in keep if k in r.metrics}
+    out = {k: r.metrics[k] for k in keep if k in r.metrics}
+    if getattr(r, "refine", None) is not None:
+        out["refine"] = r.refine  # the controller's simulated corrections per wingbeat
+    return out
 
 
 def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
