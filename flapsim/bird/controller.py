@@ -810,11 +810,10 @@ class WingbeatController:
     """Simulated corrections per wingbeat (0, the default: the regression's answer is flown
     as it is, the paper's). With N > 0 the answer P1 is simulated from the wingbeat's start
     before it is flown; where it would end short of the target, the request is raised by the
-    shortfall (pitch, roll and velocity: :data:`REFINE_COMPONENTS`) and answered again, N
-    times, and the wingbeat of the N + 1 simulated that ends nearest the target (in the
-    regression's own metric, :data:`REFINE_COMPONENTS`) is flown (its
-    simulation is the flight itself: the chosen end is restored, not flown again, unless a
-    push or a record asks for it). The regression's local model holds near the samples'
+    shortfall in pitch, roll and velocity (:data:`REFINE_COMPONENTS`) and answered again, N
+    times, and of the N + 1 wingbeats simulated the one that ends nearest the target, in the
+    regression's own metric, is flown. Its simulation is the flight itself: the chosen end is
+    restored, not flown again, unless a push or a record asks for it. The regression's local model holds near the samples'
     calm, near-level start states; in a steep bank the same dP rolls the bird differently
     (measured: asked -8.7 deg of roll, flown -45.6), and the simulation sees it. Each
     correction costs one wingbeat's simulation."""
