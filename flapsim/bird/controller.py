@@ -813,10 +813,10 @@ class WingbeatController:
     shortfall in pitch, roll and velocity (:data:`REFINE_COMPONENTS`) and answered again, N
     times, and of the N + 1 wingbeats simulated the one that ends nearest the target, in the
     regression's own metric, is flown. Its simulation is the flight itself: the chosen end is
-    restored, not flown again, unless a push or a record asks for it. The regression's local model holds near the samples'
-    calm, near-level start states; in a steep bank the same dP rolls the bird differently
-    (measured: asked -8.7 deg of roll, flown -45.6), and the simulation sees it. Each
-    correction costs one wingbeat's simulation."""
+    restored, not flown again, unless a push or a record asks for it. The regression's local
+    model holds near the samples' calm, near-level start states; in a steep bank the same dP
+    rolls the bird differently (measured: asked -8.7 deg of roll, flown -45.6), and the
+    simulation sees it. Each correction costs one wingbeat's simulation."""
     _last: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
