@@ -18,6 +18,7 @@ wall-time runs of the two doves are reported too but swing with machine load. Th
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import platform
 import time
 
@@ -230,7 +231,8 @@ def run_controller(args: argparse.Namespace) -> dict:
         ctl = load_controller(fl, db)
         coarse = load_controller(fl, db, predict="coarse")
         reg = attach_predictor(load_controller(fl, db), db)
-        refined = [(f"learned_refine{r}", load_controller(fl, db, refine=r)) for r in (0, 1, 2)]
+        # the same regression (one database load), 0, 1 and 2 corrections
+        refined = [(f"learned_refine{r}", dataclasses.replace(ctl, refine=r)) for r in (0, 1, 2)]
         trim = trim_of_base_flight(fl, ctl.P0)
         res = {}
         for name, c in (("learned", ctl), ("learned_coarse", coarse), ("learned_regression", reg),

@@ -820,7 +820,8 @@ class WingbeatController:
     _last: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.refine, (int, np.integer)) and 0 <= int(self.refine) <= MAX_REFINE):
+        if (isinstance(self.refine, bool) or not isinstance(self.refine, (int, np.integer))
+                or not 0 <= int(self.refine) <= MAX_REFINE):
             raise InputError(f"refine (simulated corrections per wingbeat) must be 0..{MAX_REFINE}, "
                              f"got {self.refine!r}")
         if self.regressor.dP.shape[1] != N_PARAMS:
@@ -899,25 +900,19 @@ class WingbeatController:
     def _refined(self, snap, P, projected, dS, S_t, S_now, base):
         """:attr:`refine`: (wingbeat, projected, its simulated end or None, wingbeats
         simulated)."""
-        fl = self.flight
-        best = None
-        request = dS.copy()
-        mask = REFINE_COMPONENTS
-        for i in range(int(self.refine) + 1):
+        best, request, n = None, dS.copy(), int(self.refine)
+        for i in range(n + 1):
             try:
-                e = cycle.fly_cycle(fl, snap, P, self.ref)
+                e = cycle.fly_cycle(self.flight, snap, P, self.ref)
             except SimulationError:
-                e = None  # this answer diverges from here: not a candidate
-            if e is not None:
-                err = refine_error(e.S, S_t, self.regressor.w)
-                if best is None or err < best[0]:
-                    best = (err, P, projected, e)
-                if i < int(self.refine):
-                    request = request + np.where(mask, S_t - e.S, 0.0)
-            if i < int(self.refine):
-                if e is None:
-                    break
-                P, projected = self._answer(request, S_now, base)
+                break  # this answer diverges from here: not a candidate, and nothing to correct
+            err = refine_error(e.S, S_t, self.regressor.w)
+            if best is None or err < best[0]:
+                best = (err, P, projected, e)
+            if i == n:
+                break
+            request = request + np.where(REFINE_COMPONENTS, S_t - e.S, 0.0)
+            P, projected = self._answer(request, S_now, base)
         if best is None:
             return P, projected, None, i + 1  # flown as it is: its divergence is reported there
         return best[1], best[2], best[3], i + 1
@@ -1181,9 +1176,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     reg = Regressor(dS, dP, k=k, weights=weights, method=method, context=S, context_weight=state_weight,
                     clip_request=clip_request, k_dense=int(k_dense))
     refine = DEFAULT_REFINE.get(flight.dove.feathers, 0) if refine is None else refine
-    if isinstance(refine, bool) or not isinstance(refine, (int, np.integer)) or not 0 <= refine <= MAX_REFINE:
-        raise InputError(f"--refine must be a whole number 0..{MAX_REFINE}, got {refine!r}")
-    ctl = WingbeatController(flight, reg, P0, carry=carry, refine=int(refine))
+    ctl = WingbeatController(flight, reg, P0, carry=carry, refine=refine)  # it checks refine
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
     elif predict == "coarse":

@@ -43,6 +43,12 @@ SUSTAINED_ARC_M = 2.0
 """Arc over which a turn's curvature is averaged to call it sustained, m."""
 
 
+def turn_speed(curvature: float, load_factor: float) -> float:
+    """The speed (m/s) at which a level turn of ``curvature`` (1/m) needs ``load_factor`` g:
+    n^2 = 1 + (v^2 kappa / g)^2, so v = sqrt(g sqrt(n^2 - 1) / kappa)."""
+    return float(np.sqrt(GRAVITY * np.sqrt(load_factor**2 - 1.0) / curvature))
+
+
 @dataclass(frozen=True)
 class FlightPath:
     """A smooth curve through ``points`` (n >= 2, metres)."""
@@ -362,8 +368,7 @@ class PathTarget:
         kappa = self.path.sustained_curvature(s, s + window_m)
         if kappa <= 1e-9:
             return self.speed
-        v = np.sqrt(GRAVITY * np.sqrt(self.turn_load_factor**2 - 1.0) / kappa)
-        return float(np.clip(v, self.turn_speed_floor, self.speed))
+        return float(np.clip(turn_speed(kappa, self.turn_load_factor), self.turn_speed_floor, self.speed))
 
     def flight_time(self, step_m: float = 0.5, wing_load_factor: float | None = None) -> float:
         """Seconds the whole path takes at the speeds asked (:meth:`speed_for` along it, with
@@ -385,7 +390,7 @@ class PathTarget:
             if wing_load_factor is not None:
                 kappa = self.path.sustained_curvature(s, s + SUSTAINED_ARC_M)
                 if kappa > 1e-9:
-                    v = min(v, float(np.sqrt(GRAVITY * np.sqrt(wing_load_factor**2 - 1.0) / kappa)))
+                    v = min(v, turn_speed(kappa, wing_load_factor))
             total += ds / v
         return float(total)
 
