@@ -171,6 +171,28 @@ def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path, capsys):
 
 
 @pytest.mark.slow
+def test_eval_follows_a_users_3_m_circle_by_slowing_into_it(tmp_path):
+    # the tightest user path: a level 3 m circle from its first point (no lead-in,
+    # entered at 7 m/s). At 7 m/s it needs sqrt(1 + (49 / (9.81 * 3))^2) = 1.94 g; at 6 m/s
+    # 1.58 g, past the 1.39 g (a 3.8 m turn) the wing sustains there (scripts/
+    # dove_turn_limit.py): a dove that follows it has flown it slower than 6 m/s on average
+    t = np.linspace(0.0, 2 * np.pi, 49)
+    f = tmp_path / "c3.csv"
+    np.savetxt(f, np.column_stack([3 * np.sin(t), 3 * (1 - np.cos(t)), np.full(t.size, 10.0)]),
+               delimiter=",", header="x,y,z", comments="")
+    runs = {}
+    for refine in ("0", "2"):
+        js = tmp_path / f"r{refine}.json"
+        main(["eval", "--path", str(f), "--workers", "1", "--refine", refine, "--json", str(js)])
+        runs[refine] = json.loads(js.read_text())["scenarios"][0]
+    r = runs["2"]
+    assert r["status"] == "completed", r["reason"]
+    m = r["metrics"]
+    assert m["progress_m"] / m["simulated_s"] < 6.0, m
+    # the regression's answers alone (no simulated corrections) spiral out of the 3 m tube
+    assert runs["0"]["status"] == "lost", runs["0"]["reason"]
+
+@pytest.mark.slow
 def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
     # a modal database is bound to the modal dove: eval flies the modal dove with it (a
     # 'failed' run would mean the feathers were not passed through and the model hash
