@@ -594,6 +594,27 @@ MERGE_SAME = ("P0", "reference_coef", "reference_period", "timestep")
 #: Fields a merge adds: which source (0, 1, ...) and which sample index there.
 MERGE_FIELDS = ("part", "source_index")
 
+#: Relative tolerance of a merge's numeric provenance entries. The reference wingbeat is
+#: fitted at run time from the capture set (a least-squares Fourier fit), so two machines, or
+#: two builds of numpy's linear algebra, write coefficients that differ in their last bits:
+#: the bundled database's and one trained here on 2026-12-02 differ by 5.2e-16 on
+#: coefficients up to 1.05, and an exact comparison refused to merge them. Another reference
+#: wingbeat or timestep differs by many orders of magnitude more.
+MERGE_RTOL = 1e-9
+
+
+def same_provenance(a: Any, b: Any, rtol: float = MERGE_RTOL) -> bool:
+    """Whether two provenance entries agree: numbers and (nested) lists of numbers to
+    ``rtol`` of the larger magnitude in the entry, anything else exactly."""
+    try:
+        x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    except (TypeError, ValueError):
+        return canonical_json(a) == canonical_json(b)
+    if x.shape != y.shape or x.dtype == object or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        return canonical_json(a) == canonical_json(b)
+    scale = max(float(np.max(np.abs(x), initial=0.0)), float(np.max(np.abs(y), initial=0.0)))
+    return bool(np.all(np.abs(x - y) <= rtol * scale))
+
 
 def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
                     same: tuple[str, ...] = MERGE_SAME) -> Database:
@@ -625,7 +646,7 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
                                  f"{db.arrays[name].shape[1:]} there, {first.arrays[name].shape[1:]} here")
         prov = db.header.get("provenance") or {}
         for key in same:
-            if canonical_json(prov.get(key)) != canonical_json(prov0.get(key)):
+            if (key in prov) != (key in prov0) or not same_provenance(prov.get(key), prov0.get(key)):
                 raise InputError(f"cannot merge {p} with {p0}: their provenance differs in {key!r} "
                                  "(another reference wingbeat or timestep)")
     arrays = {name: np.concatenate([db.arrays[name] for db in dbs]) for name in names}

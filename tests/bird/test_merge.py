@@ -15,11 +15,11 @@ from flapsim.errors import DataFileError, InputError
 P0 = [0.1, 0.2, 0.3]
 
 
-def _db(path, n, seed, model="m1", p0=P0, fields=("S", "dS", "dP"), dtype=float):
+def _db(path, n, seed, model="m1", p0=P0, fields=("S", "dS", "dP"), dtype=float, coef=(1.0, 2.0)):
     rng = np.random.default_rng(seed)
     arrays = {name: rng.standard_normal((n, 8 if name != "dP" else 3)).astype(dtype) for name in fields}
     header = {"kind": "dove-phase1", "model_hash": model, "seed": seed, "config": {"seed": seed},
-              "provenance": {"P0": list(p0), "reference_coef": [1.0, 2.0], "reference_period": 0.1,
+              "provenance": {"P0": list(p0), "reference_coef": list(coef), "reference_period": 0.1,
                              "timestep": 1 / 2400, "model_hash": model}}
     # sample indices with gaps, as a trained database has (rejected samples)
     save_database(path, header, np.arange(n) * 3 + seed, arrays, {"left_range": seed + 1})
@@ -61,6 +61,20 @@ def test_merge_refuses_unlike_databases(tmp_path, kw, fragment):
         merge_databases([tmp_path / "a.db", tmp_path / "b.db"], tmp_path / "m.db")
     assert fragment in str(e.value) and "\n" not in str(e.value)
     assert not (tmp_path / "m.db").exists()
+
+
+def test_merge_takes_the_same_reference_fitted_on_another_machine(tmp_path):
+    # the bundled database's reference coefficients and those of one trained here differ by
+    # 5.2e-16 (the run-time least-squares fit's last bits): the same wingbeat, merged; a
+    # reference 1e-6 apart (a thousand times the 1e-9 tolerance) is another one, refused
+    _db(tmp_path / "a.db", 4, 1)
+    _db(tmp_path / "b.db", 4, 2, coef=(1.0 + 2.2e-16, 2.0 - 4.4e-16))
+    assert merge_databases([tmp_path / "a.db", tmp_path / "b.db"], tmp_path / "m.db").n == 8
+    _db(tmp_path / "c.db", 4, 3, coef=(1.0, 2.0 + 2e-6))
+    with pytest.raises(InputError) as e:
+        merge_databases([tmp_path / "a.db", tmp_path / "c.db"], tmp_path / "m2.db")
+    assert "differs in 'reference_coef'" in str(e.value)
+    assert not (tmp_path / "m2.db").exists()
 
 
 def test_merge_refuses_damaged_and_unfinished_files(tmp_path):
