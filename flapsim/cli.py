@@ -30,7 +30,7 @@ import threading
 import time
 from collections.abc import Sequence
 
-from flapsim import __version__
+from flapsim import __version__, interrupts
 from flapsim.errors import FlapsimError
 from flapsim.validate import add_output_arg, check_outputs, guard_gl
 
@@ -52,7 +52,14 @@ class Terminated(BaseException):
 
 
 def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler API
+    interrupts.record(Terminated)
     raise Terminated()
+
+
+def _on_sigint(signum, frame):  # noqa: ARG001 - signal handler API
+    # Python's own handler raises KeyboardInterrupt; recorded too, for where it gets dropped
+    interrupts.record(KeyboardInterrupt)
+    raise KeyboardInterrupt
 
 
 class _Parser(argparse.ArgumentParser):
@@ -126,9 +133,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     _route_mujoco_warnings()
 
     to_stdout = args.json == "-"
-    old_term = None
+    handlers = {}  # the signals' previous handlers, restored at the end
+    interrupts.clear()
     if threading.current_thread() is threading.main_thread():
-        old_term = signal.signal(signal.SIGTERM, _on_sigterm)
+        for sig, handler in ((signal.SIGTERM, _on_sigterm), (signal.SIGINT, _on_sigint)):
+            handlers[sig] = signal.signal(sig, handler)
     t0 = time.perf_counter()
     status = 0
     try:
@@ -163,8 +172,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flapsim {args.command}: error: {what}", file=sys.stderr)
         return 1
     finally:
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
+        for sig, old in handlers.items():
+            # None: the handler was set outside Python; Python's defaults stand in for it
+            default = signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL
+            signal.signal(sig, default if old is None else old)
+        interrupts.clear()
     return status
 
 

@@ -43,6 +43,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
+from flapsim import interrupts
 from flapsim.errors import FlapsimError, InputError
 
 log = logging.getLogger(__name__)
@@ -340,6 +341,7 @@ class ChunkExecutor:
                     self.submit(*nxt)
             if not self.pending:
                 return
+            interrupts.check()  # a signal Python dropped while a worker was forked
             yield self.next_result()
 
     def close(self, abort: bool = False) -> None:

@@ -75,6 +75,7 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
     import imageio.v2 as imageio
     from tqdm import tqdm
 
+    from flapsim import interrupts
     from flapsim.validate import require_gl
 
     if not 0 < fps <= 1000 or not np.isfinite(fps):
@@ -103,6 +104,7 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
                 look, heading = None, None
                 for q in tqdm(frames, desc=f"rendering {Path(path).name}", unit="frame",
                               leave=False, disable=not progress):
+                    interrupts.check()  # a Ctrl-C Python dropped (flapsim.interrupts)
                     d.qpos[:] = q
                     mujoco.mj_forward(model, d)
                     if body >= 0:
