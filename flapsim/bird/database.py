@@ -610,8 +610,8 @@ def same_provenance(a: Any, b: Any, rtol: float = MERGE_RTOL) -> bool:
         x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     except (TypeError, ValueError):
         return canonical_json(a) == canonical_json(b)
-    if x.shape != y.shape or x.dtype == object or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-        return canonical_json(a) == canonical_json(b)
+    if x.shape != y.shape or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        return canonical_json(a) == canonical_json(b)  # None (absent) and NaN compare exactly
     scale = max(float(np.max(np.abs(x), initial=0.0)), float(np.max(np.abs(y), initial=0.0)))
     return bool(np.all(np.abs(x - y) <= rtol * scale))
 
@@ -646,7 +646,7 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
                                  f"{db.arrays[name].shape[1:]} there, {first.arrays[name].shape[1:]} here")
         prov = db.header.get("provenance") or {}
         for key in same:
-            if (key in prov) != (key in prov0) or not same_provenance(prov.get(key), prov0.get(key)):
+            if not same_provenance(prov.get(key), prov0.get(key)):
                 raise InputError(f"cannot merge {p} with {p0}: their provenance differs in {key!r} "
                                  "(another reference wingbeat or timestep)")
     arrays = {name: np.concatenate([db.arrays[name] for db in dbs]) for name in names}
