@@ -157,15 +157,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             else:
                 write_json(args.json, result)
                 print(f"results written to {args.json}")
+                if hasattr(args._module, "finished"):
+                    args._module.finished(args)  # e.g. eval's journal of finished runs
     except FlapsimError as exc:
         print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         hint = "; run the same command again to resume" if args.command == "train" else ""
+        if hasattr(args._module, "resume_hint"):
+            hint = args._module.resume_hint(args)
         print(f"flapsim {args.command}: interrupted{hint}", file=sys.stderr)
         return 130
     except Terminated:
-        print(f"flapsim {args.command}: terminated (SIGTERM)", file=sys.stderr)
+        hint = args._module.resume_hint(args) if hasattr(args._module, "resume_hint") else ""
+        print(f"flapsim {args.command}: terminated (SIGTERM){hint}", file=sys.stderr)
         return 143
     except OSError as exc:  # the system refused a read or write the checks could not foresee
         what = f"{exc.strerror or exc}" + (f": {exc.filename}" if exc.filename else "")

@@ -15,7 +15,9 @@ from flapsim.validate import add_input_arg
 
 HELP = ("evaluate controllers on named scenarios (figure of eight, pushes, forest, flock, "
         "swimming tasks, ...): metrics table, JSON, plots, videos")
-EXIT_STATUS = "  1    a scenario failed or its animal got lost (the table and JSON still say which)"
+EXIT_STATUS = ("  1    a scenario failed or its animal got lost (the table and JSON still say which)\n"
+               "  130, 143: with --json PATH the runs finished so far stay in PATH.partial, and\n"
+               "       the same command again resumes from them")
 SEED_HELP = "random seed of the scenarios that draw (forest trees, flock perturbations; default 0)"
 
 TABLE1_SIZES = (2000, 5000, 10000, 20000)
@@ -213,11 +215,13 @@ def run(args: argparse.Namespace) -> dict:
     for d in (plots, video):
         if d:
             Path(d).mkdir(exist_ok=True)
-    results = execute(runs, args.workers, args.backend, args.address)
+    journal = open_journal(args, runs)
+    results = execute(runs, args.workers, args.backend, args.address, journal)
     print_table(results)
     failed = [r["scenario"] for r in results if not r.get("ok")]
     return {"scenarios": results, "runs": len(results), "failed": failed,
             "exit_status": 1 if failed else 0,
+            "resumed_runs": journal.resumed if journal is not None else 0,
             "options": opts.to_dict()}
 
 
@@ -236,30 +240,79 @@ def _check_db_model(db: str, feathers: str) -> None:
                          f"({want}): {hint}")
 
 
+def open_journal(args: argparse.Namespace, runs: list[tuple[str, object]]):
+    """The journal of ``--json PATH``'s finished runs (:mod:`flapsim.scenarios.journal`),
+    or None without a file to write (no ``--json``, or ``--json -``)."""
+    from flapsim import __version__
+    from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path
+
+    if not args.json or args.json == "-":
+        return None
+    return RunJournal(journal_path(args.json), fingerprint(runs, __version__), len(runs))
+
+
+def finished(args: argparse.Namespace) -> None:
+    """Called once ``--json PATH`` is written: the finished runs' journal goes."""
+    from flapsim.scenarios.journal import journal_path
+
+    if args.json and args.json != "-" and not args.list:
+        journal_path(args.json).unlink(missing_ok=True)
+
+
+def resume_hint(args: argparse.Namespace) -> str:
+    """What an interrupted eval tells the user about its finished runs."""
+    from flapsim.scenarios.journal import journal_path
+
+    if args.json and args.json != "-" and journal_path(args.json).exists():
+        return (f"; the finished runs are kept in {journal_path(args.json)}: run the same "
+                "command again to resume")
+    return ""
+
+
 def execute(runs: list[tuple[str, object]], workers: int | None, backend: str = "local",
-            address: str | None = None) -> list[dict]:
-    """Run ``(scenario name, options)`` pairs on the training executor; results in order."""
+            address: str | None = None, journal=None) -> list[dict]:
+    """Run ``(scenario name, options)`` pairs on the training executor; results in order.
+    ``journal`` (a :class:`~flapsim.scenarios.journal.RunJournal`): the runs it holds are
+    taken from it, not flown again, and each run flown is added to it as it finishes."""
     from tqdm import tqdm
 
     from flapsim.parallel import ChunkExecutor
     from flapsim.scenarios import EvalWorker, RunsConfig
 
     n = len(runs)
-    workers = workers or max(1, min(n, os.cpu_count() or 1))
-    workers = min(workers, n)
     out: list[dict | None] = [None] * n
+    if journal is not None:
+        done = journal.load()
+        if journal.stale:
+            print(f"{journal.path} holds the runs of another eval (other options, databases, "
+                  "path files or flapsim version): starting afresh")
+        for i, r in done.items():
+            out[i] = r
+        if done:
+            print(f"resuming: {len(done)} of {n} runs finished before, read from {journal.path}")
+        journal.open(done)
     from flapsim.scenarios import get
 
+    todo = [i for i in range(n) if out[i] is None]
     # dearest first: the longest run must not be the one that starts last
-    order = sorted(range(n), key=lambda i: -get(runs[i][0]).cost)
-    with ChunkExecutor(EvalWorker, RunsConfig(list(runs)), workers=workers, backend=backend,
-                       address=address) as ex, \
-            tqdm(total=n, desc="scenarios", unit="run") as bar:
-        for chunk in ex.map_unordered([(i, i + 1) for i in order]):
-            for i, r in chunk:
-                out[i] = r
-                bar.set_postfix_str(f"{r['scenario']}: {r['status']}")
-                bar.update(1)
+    order = sorted(todo, key=lambda i: -get(runs[i][0]).cost)
+    try:
+        if order:
+            workers = workers or max(1, min(len(order), os.cpu_count() or 1))
+            workers = min(workers, len(order))
+            with ChunkExecutor(EvalWorker, RunsConfig(list(runs)), workers=workers, backend=backend,
+                               address=address) as ex, \
+                    tqdm(total=n, initial=n - len(order), desc="scenarios", unit="run") as bar:
+                for chunk in ex.map_unordered([(i, i + 1) for i in order]):
+                    for i, r in chunk:
+                        out[i] = r
+                        if journal is not None:
+                            journal.add(i, r)
+                        bar.set_postfix_str(f"{r['scenario']}: {r['status']}")
+                        bar.update(1)
+    finally:
+        if journal is not None:
+            journal.close()
     return [r for r in out if r is not None]
 
 
@@ -436,7 +489,8 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         _paper_protocol(o)
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
-    results = execute(runs, args.workers, args.backend, args.address)
+    journal = open_journal(args, runs)
+    results = execute(runs, args.workers, args.backend, args.address, journal)
     print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}; "
           f"databases of sampling seed {seed}): per-wingbeat means")
     head = (f"{'samples':>8} {'k %':>5} {'k':>5} {'status':<10} {'Ep m':>7} {'Er rad':>7} "
@@ -455,4 +509,5 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     failed = [f"{row['samples']}/{row['k_percent']}%" for row in rows if not row.get("ok")]
     return {"table1": rows, "scenario": name, "seed": seed, "failed": failed,
             "exit_status": 1 if failed else 0,
+            "resumed_runs": journal.resumed if journal is not None else 0,
             "databases": {str(k): str(v) for k, v in dbs.items()}}
