@@ -52,6 +52,14 @@ REFERENCE_PERIOD_S = 0.1075
 #: tube left, a fall or a collision; the clock only catches a bird that stops making way.
 WING_LOAD_FACTOR = 1.23
 
+#: The slowest average way (m/s along the path) the clock accepts: a task allows at least its
+#: path's length at this speed. Climbing pigeons fly 2.9-4.9 m/s (Berg & Biewener 2008, J Exp
+#: Biol 211:1120), and the dove, short of power on a climb, slows as they do: on 80 m at 7 deg
+#: it stays within 1.44 m of the path at 3.7 m/s on average (bundled database, session 16),
+#: and 1.5x the flight time at 7 m/s (17.7 s) called that lost at 70 of 80 m. A bird slower than
+#: this on average is not making way.
+MIN_WAY_SPEED = 3.0
+
 #: Unit push directions in the bird's heading frame: (forward, left, up) components.
 PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
     "front": (1.0, 0.0, 0.0), "back": (-1.0, 0.0, 0.0), "left": (0.0, 1.0, 0.0),
@@ -141,7 +149,9 @@ class Task:
     """``rigid`` or ``modal`` feathers (the database must be of the same dove)."""
     max_wingbeats: int | None = None
     """Wingbeats allowed (None, the default: as many as fit in 1.5x the path's flight time at
-    ``speed`` plus five reference wingbeats, whatever their length)."""
+    ``speed`` (turns tighter than :data:`WING_LOAD_FACTOR` allows counted at the speed where it
+    does), or in the path's length at :data:`MIN_WAY_SPEED` if that is longer, plus five
+    reference wingbeats, whatever their length)."""
     stop_when_lost_m: float = 15.0
     """Give up when this far from the path (nothing more to learn), m."""
     bank_lead_s: float | None = None
@@ -282,11 +292,14 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
     dt = float(m.opt.timestep)
     # the time allowed (unless a wingbeat count is given): 1.5x the path's flight time at the
     # speeds asked (slower ahead of tight turns with turn_load_factor), in turns tighter than
-    # the wing holds at that speed at the speed where it holds them (WING_LOAD_FACTOR), plus
-    # five reference wingbeats. A budget in wingbeats of the reference's period gave a
-    # controller with shorter wingbeats less time (session 12: a faster-beat database's
-    # 0.095 s wingbeats had 11.9 s for a 60 m path where the bundled one's had 12.5 s)
-    t_budget = 1.5 * target.flight_time(wing_load_factor=WING_LOAD_FACTOR) + 5 * REFERENCE_PERIOD_S
+    # the wing holds at that speed at the speed where it holds them (WING_LOAD_FACTOR), and
+    # never less than the path at MIN_WAY_SPEED (a bird that slows on a climb, as it must
+    # short of power, is not lost by the clock either), plus five reference wingbeats. A
+    # budget in wingbeats of the reference's period gave a controller with shorter wingbeats
+    # less time (session 12: a faster-beat database's 0.095 s wingbeats had 11.9 s for a 60 m
+    # path where the bundled one's had 12.5 s)
+    t_budget = (max(1.5 * target.flight_time(wing_load_factor=WING_LOAD_FACTOR),
+                    task.path.length / MIN_WAY_SPEED) + 5 * REFERENCE_PERIOD_S)
     n_max = task.max_wingbeats or int(np.ceil(3.0 * t_budget / REFERENCE_PERIOD_S))
     pushes = sorted(task.pushes, key=lambda p: p.at_s)
     positions = [d.qpos[0:3].copy()]
@@ -374,6 +387,7 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
         "elevation_range_deg": [float(np.min(elev)), float(np.max(elev))] if elev else None,
         "path_steering_range_deg": _path_steering(task.path, progress_s, positions_a),
         "real_time_factor": sim_s / wall if wall > 0 else None,
+        "way_speed_m_s": float(target.s) / sim_s if sim_s > 0 else None,
     })
     return TaskResult(status, reason, metrics, positions_a, quats_a, desired, np.array(steer),
                       np.array(elev), qpos_a, np.array(times), wall, collisions, push_log)

@@ -55,8 +55,8 @@ def add_regression_arguments(p: argparse.ArgumentParser) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wingbeats", type=int, default=None,
                    help="wingbeats to fly (default 10; with --path: at most, default the tasks' time "
-                        "budget, 1.5x the path's flight time at --speed plus five reference "
-                        "wingbeats)")
+                        "budget, 1.5x the path's flight time at --speed or its length at 3 m/s, "
+                        "whichever is longer, plus five reference wingbeats)")
     add_input_arg(p, "--path", metavar="FILE", default=None,
                   help="follow a 3D path (CSV with header x,y,z, or JSON list of [x,y,z]) with "
                         "the learned controller: look-ahead, Hermite recovery, banked turns")
