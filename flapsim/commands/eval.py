@@ -357,6 +357,10 @@ def print_table(results: list[dict]) -> None:
                                f"{m['sustained_turn_load_factor']:.2f} g at {m['speed_asked']:g} m/s)")
                 note = (f"{radius}, climbs <= {g['max_climb_deg']:.1f} deg, descents <= "
                         f"{g['max_descent_deg']:.1f} deg" + (f"; {note}" if note else ""))
+                if m.get("way_speed_m_s") is not None and m.get("speed_asked"):
+                    # a dove slows into tight turns and up climbs: say how much
+                    note += (f"; {m['way_speed_m_s']:.1f} m/s made good along the path "
+                             f"({m['speed_asked']:g} asked)")
             elif "collisions" in m and r["scenario"] == "forest":
                 note = f"{m['collisions']} collisions" + (f"; {note}" if note else "")
             print(f"{r['scenario']:<16} {r['status']:<10} {_fmt(m.get('Ep_per_wingbeat')):>7} "

@@ -40,7 +40,7 @@ def _summary(r) -> dict:
             "Ep", "Er", "Eo", "Ef", "max_path_distance", "wingbeats", "simulated_s", "progress_m",
             "path_length_m", "collisions", "steering_range_deg", "path_steering_range_deg",
             "elevation_range_deg",
-            "real_time_factor", "min_tree_clearance")
+            "real_time_factor", "way_speed_m_s", "min_tree_clearance")
     out = {k: r.metrics[k] for k in keep if k in r.metrics}
     if getattr(r, "refine", None) is not None:
         out["refine"] = r.refine  # the controller's simulated corrections per wingbeat

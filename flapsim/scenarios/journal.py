@@ -82,7 +82,7 @@ class RunJournal:
         self.resumed = 0
         """Runs :meth:`load` read back."""
         self._f = None
-        self._held = 0
+        self._bare = -1
 
     def _header(self) -> dict:
         return {"kind": KIND, "version": VERSION, "fingerprint": self.fingerprint,
@@ -127,21 +127,26 @@ class RunJournal:
                 f.flush()
                 os.fsync(f.fileno())
         self._f = open(self.path, "a")
-        self._held = len(done)
+        self._bare = self.path.stat().st_size if not done else -1
 
     def add(self, i: int, result: dict) -> None:
         """Append run ``i``'s result and sync it to disk."""
         self._f.write(json.dumps(_jsonable({"i": int(i), "result": result})) + "\n")
         self._f.flush()
         os.fsync(self._f.fileno())
-        self._held += 1
 
     def close(self) -> None:
-        """Stop adding; a journal that holds no run is removed (nothing to resume from)."""
+        """Stop adding; a journal that holds no run is removed (nothing to resume from).
+        Judged by the file's size, not by a count kept in :meth:`add`: a Ctrl-C that lands
+        after a run's line is written but before ``add`` returns must not remove that run."""
         if self._f is not None:
             self._f.close()
             self._f = None
-            if self._held == 0:
+            try:
+                bare = self.path.stat().st_size == self._bare
+            except FileNotFoundError:
+                return
+            if bare:
                 self.path.unlink(missing_ok=True)
 
     def remove(self) -> None:

@@ -189,6 +189,7 @@ def test_eval_follows_a_users_3_m_circle_by_slowing_into_it(tmp_path):
     assert r["status"] == "completed", r["reason"]
     m = r["metrics"]
     assert m["progress_m"] / m["simulated_s"] < 6.0, m
+    assert m["way_speed_m_s"] == m["progress_m"] / m["simulated_s"]  # what the note reports
     # the regression's answers alone (no simulated corrections) spiral out of the 3 m tube
     assert runs["0"]["status"] == "lost", runs["0"]["reason"]
 

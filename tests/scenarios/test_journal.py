@@ -106,3 +106,28 @@ def test_torn_stale_and_foreign_journals(tmp_path):
     with pytest.raises(InputError, match="not an eval journal"):
         RunJournal(path, "abc", 3).load()
     assert path.read_text() == "my notes, not a journal\n"  # left alone
+
+
+def test_a_run_written_when_ctrl_c_lands_is_kept(tmp_path, monkeypatch):
+    """The race CI met: the Ctrl-C arrives once a run's line is on disk but before ``add``
+    returns (here, inside its fsync). The journal's close must keep that run, or the
+    interrupted eval throws away a finished run and tells the user nothing can resume."""
+    path = journal_path(tmp_path / "r.json")
+    j = RunJournal(path, "abc", 2)
+    j.open({})
+    real_fsync = os.fsync
+
+    def interrupted(fd):
+        real_fsync(fd)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "fsync", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        j.add(0, {"status": "completed"})
+    monkeypatch.setattr(os, "fsync", real_fsync)
+    j.close()
+    assert RunJournal(path, "abc", 2).load() == {0: {"status": "completed"}}
+    empty = RunJournal(journal_path(tmp_path / "e.json"), "abc", 2)
+    empty.open({})
+    empty.close()
+    assert not empty.path.exists()  # no run finished: nothing to resume from, no file left
