@@ -38,3 +38,14 @@ def clear() -> None:
     """Forget any recorded signal (a command's end)."""
     global _pending
     _pending = None
+
+
+def checked(fn):
+    """``fn`` that first raises a recorded signal (:func:`check`): for a per-frame callback
+    handed to a long simulation loop (a video writer's ``append_data``)."""
+
+    def call(*args, **kwargs):
+        check()
+        return fn(*args, **kwargs)
+
+    return call

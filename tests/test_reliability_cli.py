@@ -242,6 +242,32 @@ def test_a_signal_python_dropped_still_stops_the_render(tmp_path):
     interrupts.check()
 
 
+def test_a_dropped_sigterm_stops_every_frame_loop(tmp_path):
+    # CI at 743129d: `modes --video` (the modal writer, which had no check) kept rendering
+    # after SIGTERM, its `Terminated` printed and dropped in logging's at-fork hook, and the
+    # test above timed out. Each frame loop that writes a video raises it at the next frame:
+    # the modal writer, and the per-frame callback the swimmer's loop is handed
+    from flapsim import interrupts
+    from flapsim.modal.video import write_frames
+
+    frames = (np.zeros((16, 16, 3), np.uint8) for _ in range(40))
+    with pytest.raises(cli.Terminated):
+        try:
+            cli._on_sigterm(15, None)
+        except cli.Terminated:
+            pass  # dropped, as inside an at-fork hook
+        write_frames(tmp_path / "x.mp4", frames, 30.0, progress=False)
+    assert list(tmp_path.iterdir()) == []
+    seen = []
+    on_frame = interrupts.checked(seen.append)
+    on_frame(1)
+    interrupts.record(cli.Terminated)
+    with pytest.raises(cli.Terminated):
+        on_frame(2)
+    on_frame(3)  # raised once
+    assert seen == [1, 3]
+
+
 def test_animate_refuses_more_frames_than_it_can_hold(capsys):
     one_line_error(capsys, cli.main(["animate", "--seconds", "3600", "--fps", "240"]),
                    "is 864000 frames; at most 100000")

@@ -228,12 +228,14 @@ def run(args: argparse.Namespace) -> dict:
         if video:  # frames stream into a temporary file, renamed only when the swim succeeded
             import imageio.v2 as imageio
 
+            from flapsim import interrupts
             from flapsim.io import atomic_path
 
             tmp = stack.enter_context(atomic_path(video, suffix=".mp4"))
             writer = stack.enter_context(imageio.get_writer(tmp, fps=args.fps, codec="libx264",
                                                             quality=7))
-            on_frame = writer.append_data
+            # a signal Python dropped while ffmpeg was forked stops the swim at the next frame
+            on_frame = interrupts.checked(writer.append_data)
         try:
             result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
                           current=current, video_fps=args.fps if video else 0.0,

@@ -74,6 +74,8 @@ def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: flo
     import imageio.v2 as imageio
     from tqdm import tqdm
 
+    from flapsim import interrupts
+
     p = check_video_path(path)
     if not (math.isfinite(fps) and 0 < fps <= 1000):
         raise InputError(f"video frame rate must be > 0 and <= 1000 frames/s, got {fps}")
@@ -86,6 +88,7 @@ def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: flo
         with writer:
             for frame in tqdm(frames, total=total, desc=f"rendering {p.name}", unit="frame",
                               leave=False, disable=not progress):
+                interrupts.check()  # a signal Python dropped while ffmpeg was forked
                 writer.append_data(frame)
                 count += 1
         if count == 0:

@@ -47,13 +47,15 @@ def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "",
         if opt.video_dir:
             import imageio.v2 as imageio
 
+            from flapsim import interrupts
             from flapsim.io import atomic_path
 
             out = Path(opt.video_dir) / f"{stem}.mp4"
             tmp = stack.enter_context(atomic_path(out, suffix=".mp4"))
             writer = stack.enter_context(imageio.get_writer(tmp, fps=opt.fps, codec="libx264",
                                                             quality=7))
-            on_frame, fps = writer.append_data, opt.fps
+            # a signal Python dropped while ffmpeg was forked stops the swim at the next frame
+            on_frame, fps = interrupts.checked(writer.append_data), opt.fps
             files.append(str(out))
         r = swim(sc.params["stroke"], seconds, target=target, layers=opt.layers, video_fps=fps,
                  video_size=(opt.size[1], opt.size[0]), on_frame=on_frame, **kw)
