@@ -46,20 +46,16 @@ EXIT_STATUS = """exit status:
   130  interrupted by Ctrl-C, 143 by SIGTERM (no partial output file is left)"""
 
 
-class Terminated(BaseException):
-    """SIGTERM, raised in the main thread so that temporary files are cleaned up (a
-    BaseException, like KeyboardInterrupt, so that ``except Exception`` does not catch it)."""
+Terminated = interrupts.Terminated
 
 
 def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler API
-    interrupts.record(Terminated)
-    raise Terminated()
+    interrupts.signalled(Terminated)
 
 
 def _on_sigint(signum, frame):  # noqa: ARG001 - signal handler API
     # Python's own handler raises KeyboardInterrupt; recorded too, for where it gets dropped
-    interrupts.record(KeyboardInterrupt)
-    raise KeyboardInterrupt
+    interrupts.signalled(KeyboardInterrupt)
 
 
 class _Parser(argparse.ArgumentParser):

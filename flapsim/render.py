@@ -100,11 +100,11 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
     try:
         with atomic_path(path, suffix=Path(path).suffix) as tmp:
             writer = imageio.get_writer(str(tmp), fps=fps, macro_block_size=1)
+            append = interrupts.checked(writer.append_data)  # see flapsim.interrupts
             try:
                 look, heading = None, None
                 for q in tqdm(frames, desc=f"rendering {Path(path).name}", unit="frame",
                               leave=False, disable=not progress):
-                    interrupts.check()  # a Ctrl-C Python dropped (flapsim.interrupts)
                     d.qpos[:] = q
                     mujoco.mj_forward(model, d)
                     if body >= 0:
@@ -122,7 +122,7 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
                     if before_frame is not None:
                         before_frame(d, renderer)
                     renderer.update_scene(d, cam)
-                    writer.append_data(renderer.render())
+                    append(renderer.render())
                     n += 1
             finally:
                 writer.close()

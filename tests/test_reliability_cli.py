@@ -268,6 +268,30 @@ def test_a_dropped_sigterm_stops_every_frame_loop(tmp_path):
     assert seen == [1, 3]
 
 
+def test_a_signal_while_ffmpeg_is_forked_waits_for_popen_to_return():
+    # raised in the parent after the fork, before Popen returned, a signal left ffmpeg
+    # running unstopped, and it created the temporary video again after the cleanup (1 of 40
+    # SIGTERMs on a loaded machine): the first frame (which forks ffmpeg) holds the signal
+    # until it returns, then raises it
+    from flapsim import interrupts
+
+    done = []
+
+    def first_frame_forks(frame):
+        cli._on_sigterm(15, None)  # arrives inside the fork
+        done.append(frame)  # Popen returns: the writer can stop ffmpeg
+
+    on_frame = interrupts.checked(first_frame_forks)
+    with pytest.raises(cli.Terminated):
+        on_frame(1)
+    assert done == [1]
+    interrupts.check()  # raised once
+    # outside a deferred block the handler raises at once, as Python's own
+    with pytest.raises(KeyboardInterrupt):
+        cli._on_sigint(2, None)
+    interrupts.clear()
+
+
 def test_animate_refuses_more_frames_than_it_can_hold(capsys):
     one_line_error(capsys, cli.main(["animate", "--seconds", "3600", "--fps", "240"]),
                    "is 864000 frames; at most 100000")

@@ -234,7 +234,7 @@ def run(args: argparse.Namespace) -> dict:
             tmp = stack.enter_context(atomic_path(video, suffix=".mp4"))
             writer = stack.enter_context(imageio.get_writer(tmp, fps=args.fps, codec="libx264",
                                                             quality=7))
-            # a signal Python dropped while ffmpeg was forked stops the swim at the next frame
+            # safe against signals while ffmpeg is forked (flapsim.interrupts)
             on_frame = interrupts.checked(writer.append_data)
         try:
             result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,

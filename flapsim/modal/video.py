@@ -86,10 +86,10 @@ def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: flo
         else:
             writer = imageio.get_writer(tmp, fps=fps, codec="libx264", macro_block_size=8)
         with writer:
+            append = interrupts.checked(writer.append_data)  # see flapsim.interrupts
             for frame in tqdm(frames, total=total, desc=f"rendering {p.name}", unit="frame",
                               leave=False, disable=not progress):
-                interrupts.check()  # a signal Python dropped while ffmpeg was forked
-                writer.append_data(frame)
+                append(frame)
                 count += 1
         if count == 0:
             raise InputError("no frames to write")

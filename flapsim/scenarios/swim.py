@@ -54,7 +54,7 @@ def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "",
             tmp = stack.enter_context(atomic_path(out, suffix=".mp4"))
             writer = stack.enter_context(imageio.get_writer(tmp, fps=opt.fps, codec="libx264",
                                                             quality=7))
-            # a signal Python dropped while ffmpeg was forked stops the swim at the next frame
+            # safe against signals while ffmpeg is forked (flapsim.interrupts)
             on_frame, fps = interrupts.checked(writer.append_data), opt.fps
             files.append(str(out))
         r = swim(sc.params["stroke"], seconds, target=target, layers=opt.layers, video_fps=fps,
