@@ -217,6 +217,8 @@ class TaskResult:
     database_samples: int | None = None
     refine: int | None = None
     """The controller's simulated corrections per wingbeat."""
+    refine_goal: str | None = None
+    """What those corrections aim at (``reachable`` or ``full``)."""
 
     @property
     def ok(self) -> bool:
@@ -281,6 +283,7 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         r = _fly(fl, ctl, target, task, record, progress)
         r.model_hash, r.k, r.database_samples = fl.dove.hash(), ctl.regressor.k, ctl.regressor.n
         r.refine = getattr(ctl, "refine", None)
+        r.refine_goal = getattr(ctl, "refine_goal", None)
         return r
     finally:
         if own:

@@ -199,6 +199,7 @@ def run(args: argparse.Namespace) -> dict:
                          f"got {floor}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
                                  carry=args.carry, refine=args.refine,
+                                 refine_goal=args.refine_goal,
                                  mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
                                  predict=args.predict, bank_lead_s=args.bank_lead,

@@ -42,6 +42,10 @@ def add_regression_arguments(p: argparse.ArgumentParser) -> None:
                         "end short of the target, ask again for the shortfall, N times; the wingbeat "
                         "that ends nearest the target is flown (default: the dove's, see the README; "
                         "0: flown as answered, the paper's). Each costs one wingbeat's simulation")
+    p.add_argument("--refine-goal", choices=("reachable", "full"), default=None,
+                   help="what --refine's corrections aim at and rank by: the target itself "
+                        "(full, the default) or the target with each change clipped as "
+                        "--clip-request clips the request (reachable; measured in the README)")
     p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper), simulate it at a "
@@ -196,7 +200,8 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
             ctl = load_controller(fl, args.db, method=args.method, k=args.k,
                                   predict=getattr(args, "predict", "simulate"), mirror=args.mirror,
                                   clip_request=args.clip_request, state_weight=args.state_weight,
-                                  k_dense=args.k_dense, carry=args.carry, refine=args.refine)
+                                  k_dense=args.k_dense, carry=args.carry, refine=args.refine,
+                                  refine_goal=args.refine_goal)
         else:
             ctl = BaseController(fl, with_tail_bias(p0(), cfg.tail_bias_deg))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
@@ -221,6 +226,7 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
         "k": getattr(getattr(ctl, "regressor", None), "k", None),
         "database_samples": getattr(getattr(ctl, "regressor", None), "n", None),
         "refine": getattr(ctl, "refine", None),
+        "refine_goal": getattr(ctl, "refine_goal", None),
         "config": {"speed": cfg.speed, "pitch_deg": cfg.pitch_deg, "roll_deg": args.roll_deg,
                    "tail_bias_deg": cfg.tail_bias_deg, "table": cfg.table,
                    "altitude": cfg.height, "timestep": float(dove.model.opt.timestep)},
@@ -247,7 +253,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
                  record=bool(args.video or args.out), clip_request=args.clip_request,
                  state_weight=args.state_weight, predict=predict, k_dense=args.k_dense,
-                 carry=args.carry, refine=args.refine)
+                 carry=args.carry, refine=args.refine, refine_goal=args.refine_goal)
     m = r.metrics
     completed = r.status == "completed"
     result = {
@@ -257,6 +263,7 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
         "clip_request": args.clip_request, "state_weight": args.state_weight,
         "predict": predict,
         "k": r.k, "database_samples": r.database_samples, "refine": r.refine,
+        "refine_goal": r.refine_goal,
         "db": str(args.db) if args.db else "bundled", **m,
     }
     print(f"dove, learned controller along {args.path} ({path.length:.1f} m): "

@@ -72,6 +72,9 @@ class EvalOptions:
     """Flight: simulated corrections per wingbeat (None: the controller's default,
     :data:`flapsim.bird.controller.DEFAULT_REFINE`; 0: the regression's answer flown as it
     is, the paper's)."""
+    refine_goal: str | None = None
+    """Flight: what the corrections aim at, ``reachable`` or ``full`` (None: the controller's
+    default, :data:`flapsim.bird.controller.DEFAULT_REFINE_GOAL`)."""
     clip_request: float = 0.02
     """Flight: the regression clips each requested dS component to these quantiles of the
     database's (0: no clip; the default is

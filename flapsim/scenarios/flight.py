@@ -44,6 +44,7 @@ def _summary(r) -> dict:
     out = {k: r.metrics[k] for k in keep if k in r.metrics}
     if getattr(r, "refine", None) is not None:
         out["refine"] = r.refine  # the controller's simulated corrections per wingbeat
+        out["refine_goal"] = getattr(r, "refine_goal", None)
     return out
 
 
@@ -68,7 +69,8 @@ def _fly_task(task, opt: EvalOptions, record: bool):
     task = dataclasses.replace(task, **given)
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
                     clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict,
-                    k_dense=opt.k_dense, carry=opt.carry, refine=opt.refine)
+                    k_dense=opt.k_dense, carry=opt.carry, refine=opt.refine,
+                    refine_goal=opt.refine_goal)
 
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:

@@ -8,10 +8,12 @@ import pytest
 from flapsim.bird import cycle
 from flapsim.bird.controller import (
     DEFAULT_REFINE,
+    DEFAULT_REFINE_GOAL,
     MAX_REFINE,
     REFINE_COMPONENTS,
     CruiseTarget,
     WingbeatController,
+    correction_goal,
     load_controller,
     refine_error,
     start_cruise,
@@ -52,6 +54,19 @@ def test_the_refine_error_weighs_attitude_and_velocity_not_the_rates():
     np.testing.assert_array_equal(REFINE_COMPONENTS, [True] * 5 + [False] * 3)
 
 
+def test_the_correction_goal_leaves_the_integral_to_its_loop_and_clips_as_the_request_is():
+    S_t = np.array([0.1, -0.2, 9.0, 0.3, -0.1, 1.0, 2.0, 3.0])
+    ref = np.array([0.0, 0.0, 7.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    full = correction_goal(S_t, ref, speed_surplus=0.5)
+    np.testing.assert_array_equal(full, S_t - np.r_[0, 0, 0.5, 0, 0, 0, 0, 0])
+    lo = np.full(8, -0.15)
+    hi = np.r_[0.15, 0.15, 1.1, 0.15, 0.15, 0.15, 0.15, 0.15]
+    # each change from the reference end within [lo, hi]: 9 - 0.5 - 7 = 1.5 m/s asked -> 1.1
+    np.testing.assert_allclose(correction_goal(S_t, ref, 0.5, (lo, hi)),
+                               [0.1, -0.15, 8.1, 0.15, -0.1, 0.15, 0.15, 0.15])
+    np.testing.assert_array_equal(correction_goal(S_t, ref, 0.5, (None, None)), full)
+
+
 class _Banked:
     """A request the regression answers only in part: a 25 deg bank in one wingbeat, at a
     speed of which ``speed_surplus`` is an integral's (the ranking leaves that to the loop)."""
@@ -70,16 +85,21 @@ def _target_banked(trim, speed_surplus=0.0):
     return _Banked(trim, speed_surplus)
 
 
-def test_the_candidate_nearest_the_target_is_flown_and_its_simulation_is_the_flight(flight, trim):
+# full: from level cruise; reachable: from a 10 deg roll, where the 25 deg bank asked is a
+# roll change past the samples' 98 % (found by trying starts and banks: from level cruise the
+# corrections aimed at the clipped goal rank below the first answer, which both aims share)
+@pytest.mark.parametrize("aim,roll_deg", [("reachable", 10.0), ("full", 0.0)])
+def test_the_candidate_nearest_the_target_is_flown_and_its_simulation_is_the_flight(flight, trim, aim,
+                                                                                    roll_deg):
     """Brute force: the candidates computed by hand (the answer, then the answer to the
     request raised by each simulated shortfall in pitch, roll and velocity, the forward speed
-    judged without the target's integral surplus) and ranked by the error in the regression's
-    metric; the
-    controller flies the best, and restoring its simulated end instead of flying it again
-    leaves the bird in the same state to the bit."""
-    ctl = load_controller(flight, refine=2)
+    judged without the target's integral surplus, and with ``reachable`` each change from
+    P0's end clipped to the database's 2-98 % quantiles of dS, as the request is) and ranked
+    by the error in the regression's metric; the controller flies the best, and restoring its
+    simulated end instead of flying it again leaves the bird in the same state to the bit."""
+    ctl = load_controller(flight, refine=2, refine_goal=aim)
     target = _target_banked(trim, speed_surplus=0.5)
-    start_cruise(flight, ctl.P0)
+    start_cruise(flight, ctl.P0, roll_deg=roll_deg)
     ctl.reset()
     snap = cycle.snapshot(flight)
     step = ctl.choose(target, snap)
@@ -90,6 +110,18 @@ def test_the_candidate_nearest_the_target_is_flown_and_its_simulation_is_the_fli
     S_t = target(e0)
     request = S_t - e0.S
     goal = S_t - np.r_[0, 0, 0.5, 0, 0, 0, 0, 0]  # the integral's 0.5 m/s left to the loop
+    if aim == "reachable":
+        # the bundled samples and their mirror images (roll, sideways velocity, roll and yaw
+        # rates negated), as the regression searches them
+        from flapsim.bird.controller import bundled_database_path
+        from flapsim.bird.database import load_database
+
+        raw = load_database(bundled_database_path()).arrays["dS"]
+        dS = np.vstack([raw, raw * np.array([1, -1, 1, -1, 1, -1, 1, -1])])
+        lo, hi = np.quantile(dS, [0.02, 0.98], axis=0)
+        clipped = e0.S + np.clip(goal - e0.S, lo, hi)
+        assert np.max(np.abs(clipped - goal)[:5]) > 1e-3  # this request asks past the samples
+        goal = clipped
     # the regression's metric: the paper's weights over each component's spread in the database
     w = np.array([0.2, 0.2, 0.24, 0.24, 0.24]) / ctl.regressor.dS.std(axis=0)[:5] ** 2
     cands = []
@@ -144,6 +176,12 @@ def test_refine_options_are_checked(flight, capsys):
     with pytest.raises(InputError, match="refine"):
         WingbeatController(flight, load_controller(flight).regressor, refine=-1)
     assert load_controller(flight).refine == DEFAULT_REFINE["rigid"]
+    with pytest.raises(InputError, match="refine_goal must be one of reachable, full"):
+        load_controller(flight, refine_goal="half")
+    assert load_controller(flight).refine_goal == DEFAULT_REFINE_GOAL["rigid"] == "full"
+    assert load_controller(flight, refine_goal="reachable").refine_goal == "reachable"
+    # no request clip, no goal clip: reachable is the full target, and says so
+    assert load_controller(flight, clip_request=0.0, refine_goal="reachable").refine_goal == "full"
     for command in (["eval", "--scenario", "figure8"], ["fly", "--controller", "learned"]):
         capsys.readouterr()
         assert main([*command, "--refine", str(MAX_REFINE + 1)]) == 2
