@@ -123,6 +123,11 @@ class _InProcess:
             self.worker.close()
 
 
+#: Seconds a pool waits for a chunk before it looks for a signal Python dropped
+#: (:mod:`flapsim.interrupts`).
+POLL_S = 0.25
+
+
 class _LocalPool:
     capacity_per_worker = 2
 
@@ -164,10 +169,13 @@ class _LocalPool:
         return len(self.futures)
 
     def next_result(self) -> Any:
-        if not self.done:
-            finished, _ = wait(self.futures, return_when=FIRST_COMPLETED)
+        while not self.done:
+            # in short waits, so that a signal Python dropped is raised within one (a flight
+            # of the evaluation suite runs for minutes in its worker)
+            finished, _ = wait(self.futures, timeout=POLL_S, return_when=FIRST_COMPLETED)
             self.futures -= finished
             self.done.extend(finished)
+            interrupts.check()
         return self._result(self.done.popleft())
 
     def close(self, abort: bool) -> None:
@@ -259,7 +267,10 @@ class _RayPool:
         return len(self.refs)
 
     def next_result(self) -> Any:
-        ready, _ = self.ray.wait(list(self.refs), num_returns=1)
+        ready: list = []
+        while not ready:  # in short waits, as _LocalPool's
+            ready, _ = self.ray.wait(list(self.refs), num_returns=1, timeout=POLL_S)
+            interrupts.check()
         k = self.refs.pop(ready[0])
         self.load[k] -= 1
         return self._get(ready[0])
@@ -341,7 +352,7 @@ class ChunkExecutor:
                     self.submit(*nxt)
             if not self.pending:
                 return
-            interrupts.check()  # a signal Python dropped while a worker was forked
+            interrupts.check()  # a signal Python dropped (the pools also check while waiting)
             yield self.next_result()
 
     def close(self, abort: bool = False) -> None:

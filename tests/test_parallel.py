@@ -65,3 +65,23 @@ def test_bad_arguments_and_missing_ray(monkeypatch):
     with pytest.raises(InputError) as e:
         ChunkExecutor(FakeWorker, FakeConfig(), workers=2, backend="ray")
     assert "pip install 'flapsim[cluster]'" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_signal_python_dropped_is_raised_while_a_chunk_runs():
+    # a KeyboardInterrupt Python printed and dropped (flapsim.interrupts) is raised while the
+    # pool waits, not when the running chunk (20 s here, minutes for a suite's flight) ends
+    import threading
+    import time
+
+    from flapsim import interrupts
+
+    timer = threading.Timer(0.5, interrupts.record, (KeyboardInterrupt,))
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        with ChunkExecutor(FakeWorker, FakeConfig(sleep_s=4.0), workers=2) as ex:
+            timer.start()
+            list(ex.map_unordered([(0, 5)]))
+    # the chunk's 20 s not waited for: 10 s leaves room for the spawned worker's start-up
+    assert time.monotonic() - t0 < 10.0
+    assert not mp.active_children()
+    interrupts.clear()
