@@ -30,7 +30,7 @@ import threading
 import time
 from collections.abc import Sequence
 
-from flapsim import __version__, interrupts
+from flapsim import __version__, environment, interrupts
 from flapsim.errors import FlapsimError
 from flapsim.validate import add_output_arg, check_outputs, guard_gl
 
@@ -146,6 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             result = dict(result)
             result.setdefault("command", args.command)
             result.setdefault("flapsim_version", __version__)
+            result.setdefault("environment", environment.versions())  # see flapsim.environment
             result.setdefault("seed", args.seed)
             result.setdefault("wall_time_s", time.perf_counter() - t0)
             if to_stdout:

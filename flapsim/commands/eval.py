@@ -244,12 +244,13 @@ def _check_db_model(db: str, feathers: str) -> None:
 def open_journal(args: argparse.Namespace, runs: list[tuple[str, object]]):
     """The journal of ``--json PATH``'s finished runs (:mod:`flapsim.scenarios.journal`),
     or None without a file to write (no ``--json``, or ``--json -``)."""
-    from flapsim import __version__
+    from flapsim import environment
     from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path
 
     if not args.json or args.json == "-":
         return None
-    return RunJournal(journal_path(args.json), fingerprint(runs, __version__), len(runs))
+    # the packages too: the same runs flown with another numpy may end otherwise (environment)
+    return RunJournal(journal_path(args.json), fingerprint(runs, environment.tag()), len(runs))
 
 
 def finished(args: argparse.Namespace) -> None:

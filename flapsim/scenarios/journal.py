@@ -2,8 +2,9 @@
 ``flapsim eval --json PATH`` resumes where it stopped when the same command is run again.
 
 The journal is ``PATH.partial``: JSON lines, a header naming what was asked (a fingerprint
-of every run's scenario and options, the flapsim version, and the bytes of each database and
-path file the runs read), then one line per finished run, appended and synced as it arrives.
+of every run's scenario and options, the versions of flapsim and the packages whose numerics
+decide a flight (:func:`flapsim.environment.tag`), and the bytes of each database and path
+file the runs read), then one line per finished run, appended and synced as it arrives.
 A run is deterministic given what the fingerprint covers, so a run read back is the run that
 would be flown again. A line torn by ``kill -9`` is flown again; a journal of other runs (the
 options, a database or the code changed) is replaced by the new one; a file there that is no
@@ -42,8 +43,9 @@ def _file_digest(path: str | os.PathLike) -> str:
 
 def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
     """sha256 over what decides the runs' results: each run's scenario name and options
-    (``to_dict()``), ``version``, and the content of the database and path file each reads
-    (the bundled database stands for ``db=None`` on a flight)."""
+    (``to_dict()``), ``version`` (the software's: :func:`flapsim.environment.tag`), and the
+    content of the database and path file each reads (the bundled database stands for
+    ``db=None`` on a flight)."""
     from flapsim.scenarios import get
 
     files: dict[str, str] = {}

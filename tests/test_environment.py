@@ -1,0 +1,44 @@
+"""What a result was computed with: in every command's JSON, and in an eval journal's key."""
+
+import argparse
+import json
+import platform
+
+import mujoco
+import numpy as np
+import scipy
+
+from flapsim import __version__, cli, environment
+from flapsim.commands import eval as eval_cmd
+from flapsim.scenarios import EvalOptions
+
+
+def test_versions_are_the_imported_packages():
+    # each against the package's own attribute, not importlib.metadata's answer again
+    v = environment.versions()
+    assert v["flapsim"] == __version__
+    assert v["python"] == platform.python_version()
+    assert v["numpy"] == np.__version__ and v["scipy"] == scipy.__version__
+    assert v["mujoco"] == mujoco.__version__
+    assert environment.tag().startswith(f"flapsim {__version__}, python ")
+
+
+def test_every_command_json_names_the_packages(tmp_path):
+    out = tmp_path / "l.json"
+    assert cli.main(["eval", "--list", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["environment"]["numpy"] == np.__version__
+
+
+def test_an_eval_journal_of_other_packages_is_not_resumed(tmp_path, monkeypatch):
+    # the same runs under another numpy may fly otherwise: their journal must not be read back
+    args = argparse.Namespace(json=str(tmp_path / "r.json"))
+    runs = [("wind-steady", EvalOptions(quick=True))]
+    j = eval_cmd.open_journal(args, runs)
+    j.open({})
+    j.add(0, {"status": "completed"})
+    j.close()
+    assert eval_cmd.open_journal(args, runs).load() == {0: {"status": "completed"}}
+    real = environment.versions
+    monkeypatch.setattr(environment, "versions", lambda: {**real(), "numpy": "0.0.1"})
+    other = eval_cmd.open_journal(args, runs)
+    assert other.load() == {} and other.stale
