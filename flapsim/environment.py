@@ -1,11 +1,12 @@
 """The software a result was computed with.
 
 A controlled flight is chaotic: near the limits of what the dove can do, a verdict turns on
-the last bits of a least-squares fit or a kd-tree query. Measured in session 18: the same
-commit (24f0683) lost ``climb-turn-15`` at wingbeat 55 with the packages installed then,
-where it had been followed within 1.76 m with those of session 15. So every command's JSON
-carries :func:`versions`, and an evaluation's resumable journal is keyed by them too (a run
-read back must be the run that would be flown again).
+the last bits of a least-squares fit or a kd-tree query, and those bits depend on the
+packages and on the processor (numerical libraries pick their kernels by CPU). Measured in
+session 18: the same commit (24f0683) lost ``climb-turn-15`` at wingbeat 55 here, where
+session 15 had it followed within 1.76 m. So every command's JSON carries :func:`versions`,
+and an evaluation's resumable journal is keyed by them too (a run read back must be the run
+that would be flown again).
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ PACKAGES = ("mujoco", "numpy", "scipy", "numba")
 
 
 def versions() -> dict[str, str | None]:
-    """flapsim's, Python's and :data:`PACKAGES`' versions (None: not installed), and the
-    machine's architecture."""
+    """flapsim's, Python's and :data:`PACKAGES`' versions (None: not installed), the
+    machine's architecture and its processor's model."""
     out: dict[str, str | None] = {"flapsim": __version__, "python": platform.python_version()}
     for name in PACKAGES:
         try:
@@ -29,7 +30,20 @@ def versions() -> dict[str, str | None]:
         except metadata.PackageNotFoundError:
             out[name] = None
     out["machine"] = platform.machine()
+    out["cpu"] = _cpu_model()
     return out
+
+
+def _cpu_model() -> str | None:
+    """The processor's model name (Linux), else ``platform.processor()`` or None."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or None
 
 
 def tag() -> str:

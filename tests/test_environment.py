@@ -42,3 +42,16 @@ def test_an_eval_journal_of_other_packages_is_not_resumed(tmp_path, monkeypatch)
     monkeypatch.setattr(environment, "versions", lambda: {**real(), "numpy": "0.0.1"})
     other = eval_cmd.open_journal(args, runs)
     assert other.load() == {} and other.stale
+
+
+def test_the_processor_is_named_where_linux_says_it():
+    from pathlib import Path
+
+    import pytest
+
+    info = Path("/proc/cpuinfo")
+    if not info.exists():
+        pytest.skip("no /proc/cpuinfo (not Linux): the processor comes from platform")
+    names = [ln.split(":", 1)[1].strip() for ln in info.read_text().splitlines()
+             if ln.startswith("model name")]
+    assert environment.versions()["cpu"] == (names[0] if names else platform.processor() or None)
