@@ -74,7 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                       "failed (sweep, eval)\n  2    bad"),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--version", action="version", version=f"flapsim {__version__}")
+    # the packages too: a bug report (or a flight near the limits) depends on them
+    parser.add_argument("--version", action="version",
+                        version=f"flapsim {__version__} ({environment.tag().split(', ', 1)[1]})")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:

@@ -55,3 +55,10 @@ def test_the_processor_is_named_where_linux_says_it():
     names = [ln.split(":", 1)[1].strip() for ln in info.read_text().splitlines()
              if ln.startswith("model name")]
     assert environment.versions()["cpu"] == (names[0] if names else platform.processor() or None)
+
+
+def test_version_names_the_packages(capsys):
+    assert cli.main(["--version"]) == 0
+    out = capsys.readouterr().out.strip()
+    assert out.startswith(f"flapsim {__version__} (python {platform.python_version()}, ")
+    assert f"numpy {np.__version__}" in out and f"mujoco {mujoco.__version__}" in out
