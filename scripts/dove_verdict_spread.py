@@ -1,0 +1,122 @@
+"""How firm a flight scenario's verdict is: the scenario flown N times, each start's forward
+speed changed by a draw far below anything physical (default +-1 mm/s), and the verdicts
+counted.
+
+A controlled flight is chaotic: near the limits of what the dove can do, one run's verdict
+turns on last-bit differences (session 18: the same commit lost ``climb-turn-15`` here where
+session 15 had followed it; see :mod:`flapsim.environment`). A completion rate over
+perturbed starts says what one verdict cannot: whether the scenario is within reach, at its
+edge, or beyond it.
+
+    PYTHONPATH=. python scripts/dove_verdict_spread.py NAME[,NAME...]|user [--n 10]
+        [--jitter 0.001] [--workers 2] [--refine-goal full|reachable] [--json out.json]
+
+NAME: a path scenario (``flapsim eval --list``: figure8*, sinusoid*, climb-turn-*, plucked-*,
+wind-*) or one of ``scripts/dove_user_paths.py``'s paths (``user``: all ten). The draws are
+reproducible (``--seed``); the first start is the unperturbed one. About half a run's flight
+time per run on 2 workers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import time
+
+import numpy as np
+
+from flapsim.io import write_json
+
+_JITTER = 0.0
+
+
+def _init() -> None:
+    """In each worker: every path start gets the run's forward-speed change (``_JITTER``)."""
+    from flapsim.bird import tasks
+
+    original = tasks.start_on_path
+
+    def jittered(fl, *args, **kwargs):
+        original(fl, *args, **kwargs)
+        # along the velocity: the start's speed, not its direction, changes
+        v = fl.data.qvel[0:3]
+        v += _JITTER * v / max(float(np.linalg.norm(v)), 1e-9)
+
+    tasks.start_on_path = jittered
+
+
+def _fly(job: tuple[str, float, str | None]) -> dict:
+    global _JITTER
+    name, dv, goal = job
+    _JITTER = dv
+    if name in _user_paths():
+        from flapsim.bird.path import FlightPath
+        from flapsim.bird.tasks import Task, fly_task
+
+        t = fly_task(Task(FlightPath(_user_paths()[name]())), refine_goal=goal)
+        m = t.metrics
+        return {"name": name, "dv_m_s": dv, "status": t.status, "note": m.get("note", ""),
+                "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
+    from flapsim import scenarios
+
+    sc = scenarios.get(name)
+    r = sc.runner(sc, scenarios.EvalOptions(refine_goal=goal))
+    m = r.get("metrics", {})
+    return {"name": name, "dv_m_s": dv, "status": r.get("status"), "note": r.get("reason", ""),
+            "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
+
+
+def _user_paths() -> dict:
+    """The ten user paths of ``scripts/dove_user_paths.py`` (``user`` names them all)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from dove_user_paths import PATHS
+
+    return PATHS
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scenario")
+    ap.add_argument("--n", type=int, default=10, help="perturbed starts (default 10)")
+    ap.add_argument("--jitter", type=float, default=0.001,
+                    help="largest change of the start's speed, m/s (default 0.001)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--refine-goal", choices=("full", "reachable"), default=None)
+    ap.add_argument("--json")
+    a = ap.parse_args()
+    from flapsim import scenarios
+
+    names = list(_user_paths()) if a.scenario == "user" else a.scenario.split(",")
+    for name in names:
+        if name in _user_paths():
+            continue
+        sc = scenarios.get(name)
+        if sc.family != "flight" or sc.runner.__name__ != "run_path":
+            raise SystemExit(f"{name}: not a path scenario (see the module docstring)")
+    dvs = [0.0] + list(np.random.default_rng(a.seed).uniform(-a.jitter, a.jitter, a.n - 1))
+    jobs = [(name, float(dv), a.refine_goal) for name in names for dv in dvs]
+    t0 = time.perf_counter()
+    with mp.get_context("spawn").Pool(a.workers, initializer=_init) as pool:
+        rows = pool.map(_fly, jobs, chunksize=1)
+    wall = time.perf_counter() - t0
+    counts = {}
+    for r in rows:
+        print(f"{r['name']:22s} dv {r['dv_m_s'] * 1e3:+7.3f} mm/s  {r['status']:9s}  largest "
+              f"{r['max_distance_m'] if r['max_distance_m'] is not None else float('nan'):5.2f} m  "
+              f"{r['note']}")
+        counts[r["name"]] = counts.get(r["name"], 0) + (r["status"] == "completed")
+    for name, done in counts.items():
+        print(f"{name}: completed {done} of {len(dvs)} starts within +-{a.jitter * 1e3:g} mm/s")
+    print(f"{sum(counts.values())} of {len(rows)} in all ({wall:.0f} s)")
+    if a.json:
+        write_json(a.json, {"scenarios": names, "jitter_m_s": a.jitter, "seed": a.seed,
+                            "completed": counts, "runs": rows, "wall_s": wall,
+                            "refine_goal": a.refine_goal})
+
+
+if __name__ == "__main__":
+    main()
