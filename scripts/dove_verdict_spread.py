@@ -9,7 +9,8 @@ perturbed starts says what one verdict cannot: whether the scenario is within re
 edge, or beyond it.
 
     PYTHONPATH=. python scripts/dove_verdict_spread.py NAME[,NAME...]|user [--n 10]
-        [--jitter 0.001] [--workers 2] [--refine-goal full|reachable] [--json out.json]
+        [--jitter 0.001] [--workers 2] [--refine-goal full|reachable] [--set NAME=VALUE ...]
+        [--json out.json]
 
 NAME: a path scenario (``flapsim eval --list``: figure8*, sinusoid*, climb-turn-*, plucked-*,
 wind-*) or one of ``scripts/dove_user_paths.py``'s paths (``user``: all ten). The draws are
@@ -45,22 +46,24 @@ def _init() -> None:
     tasks.start_on_path = jittered
 
 
-def _fly(job: tuple[str, float, str | None]) -> dict:
+def _fly(job: tuple[str, float, dict]) -> dict:
     global _JITTER
-    name, dv, goal = job
+    name, dv, options = job
     _JITTER = dv
+    from flapsim import scenarios
+
+    opt = scenarios.EvalOptions(**options)
     if name in _user_paths():
         from flapsim.bird.path import FlightPath
-        from flapsim.bird.tasks import Task, fly_task
+        from flapsim.bird.tasks import Task
+        from flapsim.scenarios.flight import _fly_task  # the options applied as eval applies them
 
-        t = fly_task(Task(FlightPath(_user_paths()[name]())), refine_goal=goal)
+        t = _fly_task(Task(FlightPath(_user_paths()[name]())), opt, False)
         m = t.metrics
         return {"name": name, "dv_m_s": dv, "status": t.status, "note": m.get("note", ""),
                 "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
-    from flapsim import scenarios
-
     sc = scenarios.get(name)
-    r = sc.runner(sc, scenarios.EvalOptions(refine_goal=goal))
+    r = sc.runner(sc, opt)
     m = r.get("metrics", {})
     return {"name": name, "dv_m_s": dv, "status": r.get("status"), "note": r.get("reason", ""),
             "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
@@ -86,11 +89,19 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--refine-goal", choices=("full", "reachable"), default=None)
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="an evaluation option (flapsim.scenarios.EvalOptions), e.g. "
+                         "bank_lead_s=0.4, carry=0.3, refine=3; repeatable")
     ap.add_argument("--json")
     a = ap.parse_args()
+    options: dict = {"refine_goal": a.refine_goal}
+    for item in a.set:
+        key, _, value = item.partition("=")
+        options[key] = int(value) if value.lstrip("-").isdigit() else float(value)
     from flapsim import scenarios
 
-    names = list(_user_paths()) if a.scenario == "user" else a.scenario.split(",")
+    names = [n for token in a.scenario.split(",")
+             for n in (list(_user_paths()) if token == "user" else [token])]
     for name in names:
         if name in _user_paths():
             continue
@@ -98,7 +109,7 @@ def main() -> None:
         if sc.family != "flight" or sc.runner.__name__ != "run_path":
             raise SystemExit(f"{name}: not a path scenario (see the module docstring)")
     dvs = [0.0] + list(np.random.default_rng(a.seed).uniform(-a.jitter, a.jitter, a.n - 1))
-    jobs = [(name, float(dv), a.refine_goal) for name in names for dv in dvs]
+    jobs = [(name, float(dv), options) for name in names for dv in dvs]
     t0 = time.perf_counter()
     with mp.get_context("spawn").Pool(a.workers, initializer=_init) as pool:
         rows = pool.map(_fly, jobs, chunksize=1)
@@ -115,7 +126,7 @@ def main() -> None:
     if a.json:
         write_json(a.json, {"scenarios": names, "jitter_m_s": a.jitter, "seed": a.seed,
                             "completed": counts, "runs": rows, "wall_s": wall,
-                            "refine_goal": a.refine_goal})
+                            "options": options})
 
 
 if __name__ == "__main__":
