@@ -15,10 +15,11 @@ raises it again. The CLI clears it when a command ends (:func:`clear`), so an in
 caller starts clean.
 
 Where a signal must not be raised at all, :func:`deferred` holds it until its block ends:
-around the call that forks ffmpeg for a video. An exception raised in the parent after the
-fork but before ``Popen`` returned leaves ffmpeg running with nobody to stop it; it then
-creates the temporary video file again after the cleanup removed it (measured: 1 of 40
-SIGTERMs on a loaded machine left a ``.x.mp4.*`` file behind).
+around each frame handed to a video writer (:func:`checked`). Raised inside the writer (after
+ffmpeg's fork but before ``Popen`` returned, or in a pipe write), it leaves ffmpeg running, or
+killed without a wait, and ffmpeg then created the temporary video file again after the
+cleanup had removed it (measured: 1 of 40 SIGTERMs on a loaded machine left a ``.x.mp4.*``
+file behind).
 """
 
 from __future__ import annotations
@@ -80,18 +81,16 @@ def clear() -> None:
 
 def checked(fn: Callable[..., Any]) -> Callable[..., Any]:
     """``fn`` for a per-frame loop, made safe against signals: each call first raises a
-    recorded signal (:func:`check`), and the first runs :func:`deferred` (a video writer's
-    ``append_data``, whose first frame forks ffmpeg)."""
-    started = False
+    recorded signal (:func:`check`), and runs :func:`deferred`. Made for a video writer's
+    ``append_data``: its first frame forks ffmpeg, and every frame blocks in a pipe write to
+    it; a signal raised inside the writer makes it kill ffmpeg without waiting, and ffmpeg,
+    still starting, then created the temporary video after the cleanup had removed it (1 of
+    40 SIGTERMs under load left ``.x.mp4.*``, and one CI-like run with three jobs on two
+    cores). Raised after the frame, it lets the writer close ffmpeg and wait for it."""
 
     def call(*args, **kwargs):
-        nonlocal started
         check()
-        if started:
-            return fn(*args, **kwargs)
         with deferred():
-            out = fn(*args, **kwargs)
-        started = True
-        return out
+            return fn(*args, **kwargs)
 
     return call
