@@ -33,6 +33,13 @@ from flapsim.errors import InputError, SimulationError
 #: 0 with their carry of 0).
 DEFAULT_AOA_PER_G_DEG = {"rigid": 30.0, "modal": 0.0}
 
+#: How far ahead the path target asks the bank, s, per dove
+#: (:attr:`~flapsim.bird.path.PathTarget.bank_lead_s`; README, "How firm a verdict is"):
+#: measured for the rigid dove over starts under 1 mm/s apart (the ten user paths and the
+#: level and 15 deg climbing circles, 10 starts each); modal feathers keep the 0.3 s they
+#: were measured with.
+DEFAULT_BANK_LEAD_S = {"rigid": 0.2, "modal": 0.3}
+
 #: The path target's default climb given up per m/s of missing airspeed, rad s/m, per dove
 #: (:attr:`~flapsim.bird.path.PathTarget.climb_per_speed_deficit`; README, "Speed first"):
 #: 0 for both, measured over the five rigid databases (0.1 and 0.05 complete the 7 deg climb
@@ -156,7 +163,7 @@ class Task:
     """Give up when this far from the path (nothing more to learn), m."""
     bank_lead_s: float | None = None
     """The path target asks the bank its recovery curve has this long after the wingbeat's
-    end, s (None: :class:`~flapsim.bird.path.PathTarget`'s default, 0.3; 0: at the end, the
+    end, s (None: the dove's default, :data:`DEFAULT_BANK_LEAD_S`; 0: at the end, the
     paper's)."""
     aoa_per_g_deg: float | None = None
     """The path target asks this much more angle of attack per g of a turn's load factor,
@@ -180,6 +187,11 @@ def _per_dove(table: dict, feathers: str, asked: float | None) -> float:
 def default_climb_per_speed_deficit(feathers: str, asked: float | None = None) -> float:
     """``asked``, or the dove's default climb given up per m/s of missing airspeed."""
     return _per_dove(DEFAULT_CLIMB_PER_SPEED_DEFICIT, feathers, asked)
+
+
+def default_bank_lead(feathers: str, asked: float | None = None) -> float:
+    """``asked``, or the dove's default bank lead (s)."""
+    return _per_dove(DEFAULT_BANK_LEAD_S, feathers, asked)
 
 
 def default_aoa_per_g(feathers: str, asked: float | None = None) -> float:
@@ -263,7 +275,7 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
     try:
         cfg = FlightConfig(speed=task.speed)
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
-        lead = {} if task.bank_lead_s is None else {"bank_lead_s": float(task.bank_lead_s)}
+        lead = {"bank_lead_s": default_bank_lead(task.feathers, task.bank_lead_s)}
         lead["aoa_per_g_deg"] = default_aoa_per_g(task.feathers, task.aoa_per_g_deg)
         lead["climb_per_speed_deficit"] = default_climb_per_speed_deficit(
             task.feathers, task.climb_per_speed_deficit)

@@ -107,6 +107,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         Task,
         build_flight,
         default_aoa_per_g,
+        default_bank_lead,
         default_climb_per_speed_deficit,
     )
 
@@ -123,6 +124,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             start_on_path(fl, ctl.P0, path, cmd.speed)
             target = PathTarget(trim, path, speed=cmd.speed,
                                 aoa_per_g_deg=default_aoa_per_g(feathers),
+                                bank_lead_s=default_bank_lead(feathers),
                                 climb_per_speed_deficit=default_climb_per_speed_deficit(feathers))
         else:
             start_cruise(fl, ctl.P0, cfg)
