@@ -26,20 +26,26 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     parent = target.parent if str(target.parent) else Path(".")
     if not parent.exists():
         raise InputError(f"cannot write {target}: folder {parent} does not exist (create it first)")
-    fd, tmp = tempfile.mkstemp(
-        prefix=f".{target.name}.", suffix=suffix if suffix is not None else target.suffix, dir=parent
-    )
-    os.close(fd)
-    tmp_path = Path(tmp)
-    # mkstemp creates 0600; give the result the permissions a plain open() would
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp_path, 0o666 & ~umask)
+    from flapsim import interrupts
+
+    tmp_path: Path | None = None
     try:
+        # a signal between mkstemp and this try left the temporary file behind (seen at
+        # SIGTERM on a loaded machine): the CLI's handlers hold it until the name is kept
+        with interrupts.deferred():
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.",
+                                       suffix=suffix if suffix is not None else target.suffix,
+                                       dir=parent)
+            tmp_path = Path(tmp)
+        os.close(fd)
+        # mkstemp creates 0600; give the result the permissions a plain open() would
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp_path, 0o666 & ~umask)
         yield tmp_path
         os.replace(tmp_path, target)
     finally:
-        if tmp_path.exists():
+        if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
 
 

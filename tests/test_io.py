@@ -44,3 +44,26 @@ def test_outputs_get_ordinary_permissions(tmp_path):
         os.umask(umask)
     # mkstemp's 0600 would hide results from other users; a plain open() gives 0644 here
     assert (tmp_path / "p.json").stat().st_mode & 0o777 == 0o644
+
+
+def test_a_signal_right_after_the_temporary_is_made_leaves_no_file(tmp_path, monkeypatch):
+    # a SIGTERM between mkstemp and the cleanup's try left `.x.mp4.*` behind (seen on a loaded
+    # machine): the CLI's handler holds it until the name is kept, then it is raised
+    import tempfile
+
+    from flapsim import cli, interrupts
+    from flapsim.io import atomic_path
+
+    real = tempfile.mkstemp
+
+    def signalled_after(*args, **kwargs):
+        out = real(*args, **kwargs)
+        cli._on_sigterm(15, None)  # the signal lands as mkstemp returns
+        return out
+
+    monkeypatch.setattr(tempfile, "mkstemp", signalled_after)
+    with pytest.raises(cli.Terminated):
+        with atomic_path(tmp_path / "x.mp4"):
+            pass
+    assert list(tmp_path.iterdir()) == []
+    interrupts.check()  # raised once
