@@ -294,6 +294,43 @@ def test_a_signal_inside_a_frame_is_raised_after_the_writer_returns():
     interrupts.clear()
 
 
+def test_a_video_interrupted_mid_way_closes_ffmpeg_before_the_cleanup(tmp_path, monkeypatch):
+    # imageio's `with writer` skips close() on an exception: ffmpeg, closed only when the
+    # writer was collected, wrote the temporary video after the cleanup had removed it (4 of
+    # 30 SIGTERMs under load left a one-frame .x.mp4.*). The writer is closed first, while the
+    # temporary still exists, so the cleanup removes what ffmpeg wrote
+    import imageio.v2 as imageio
+
+    from flapsim import interrupts
+    from flapsim.modal.video import write_frames
+
+    closed = []
+    real = imageio.get_writer
+
+    def spied(path, *args, **kwargs):
+        w = real(path, *args, **kwargs)
+        close = w.close
+
+        def close_and_note():
+            close()
+            closed.append(Path(path).exists())
+
+        w.close = close_and_note
+        return w
+
+    monkeypatch.setattr(imageio, "get_writer", spied)
+
+    def frames():
+        yield np.zeros((16, 16, 3), np.uint8)
+        interrupts.record(cli.Terminated)  # a signal after the first frame
+        yield np.zeros((16, 16, 3), np.uint8)
+
+    with pytest.raises(cli.Terminated):
+        write_frames(tmp_path / "x.mp4", frames(), 30.0, progress=False)
+    assert closed == [True]  # closed (ffmpeg done) before the temporary was removed
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_animate_refuses_more_frames_than_it_can_hold(capsys):
     one_line_error(capsys, cli.main(["animate", "--seconds", "3600", "--fps", "240"]),
                    "is 864000 frames; at most 100000")

@@ -232,8 +232,9 @@ def run(args: argparse.Namespace) -> dict:
             from flapsim.io import atomic_path
 
             tmp = stack.enter_context(atomic_path(video, suffix=".mp4"))
-            writer = stack.enter_context(imageio.get_writer(tmp, fps=args.fps, codec="libx264",
-                                                            quality=7))
+            writer = imageio.get_writer(tmp, fps=args.fps, codec="libx264", quality=7)
+            # closed on an exception too (imageio's __exit__ skips it; flapsim.modal.video)
+            stack.callback(writer.close)
             # safe against signals while ffmpeg is forked (flapsim.interrupts)
             on_frame = interrupts.checked(writer.append_data)
         try:

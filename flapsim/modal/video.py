@@ -85,12 +85,17 @@ def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: flo
             writer = imageio.get_writer(tmp, mode="I", duration=1000.0 / fps, loop=0)
         else:
             writer = imageio.get_writer(tmp, fps=fps, codec="libx264", macro_block_size=8)
-        with writer:
+        # closed in a finally, not by `with writer`: imageio's __exit__ skips close() on an
+        # exception, and ffmpeg, closed only when the writer was collected, wrote the
+        # temporary video after the cleanup had removed it (SIGTERM under load)
+        try:
             append = interrupts.checked(writer.append_data)  # see flapsim.interrupts
             for frame in tqdm(frames, total=total, desc=f"rendering {p.name}", unit="frame",
                               leave=False, disable=not progress):
                 append(frame)
                 count += 1
+        finally:
+            writer.close()
         if count == 0:
             raise InputError("no frames to write")
     return count

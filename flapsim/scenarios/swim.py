@@ -52,8 +52,9 @@ def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "",
 
             out = Path(opt.video_dir) / f"{stem}.mp4"
             tmp = stack.enter_context(atomic_path(out, suffix=".mp4"))
-            writer = stack.enter_context(imageio.get_writer(tmp, fps=opt.fps, codec="libx264",
-                                                            quality=7))
+            writer = imageio.get_writer(tmp, fps=opt.fps, codec="libx264", quality=7)
+            # closed on an exception too (imageio's __exit__ skips it; flapsim.modal.video)
+            stack.callback(writer.close)
             # safe against signals while ffmpeg is forked (flapsim.interrupts)
             on_frame, fps = interrupts.checked(writer.append_data), opt.fps
             files.append(str(out))
