@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 
 from flapsim.errors import InputError, SimulationError
-from flapsim.io import atomic_path
+from flapsim.io import atomic_video
 
 log = logging.getLogger(__name__)
 
@@ -72,10 +72,8 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
     if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
         raise InputError(f"video {width}x{height} exceeds the model's offscreen buffer "
                          f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}")
-    import imageio.v2 as imageio
     from tqdm import tqdm
 
-    from flapsim import interrupts
     from flapsim.validate import require_gl
 
     if not 0 < fps <= 1000 or not np.isfinite(fps):
@@ -98,34 +96,29 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
                               "set MUJOCO_GL=egl or osmesa before starting Python") from None
     n = 0
     try:
-        with atomic_path(path, suffix=Path(path).suffix) as tmp:
-            writer = imageio.get_writer(str(tmp), fps=fps, macro_block_size=1)
-            append = interrupts.checked(writer.append_data)  # see flapsim.interrupts
-            try:
-                look, heading = None, None
-                for q in tqdm(frames, desc=f"rendering {Path(path).name}", unit="frame",
-                              leave=False, disable=not progress):
-                    d.qpos[:] = q
-                    mujoco.mj_forward(model, d)
-                    if body >= 0:
-                        target = d.xpos[body].copy()
-                        h = _heading_deg(d.xmat[body])
-                        if look is None:
-                            look, heading = target, h
-                        a = camera.smoothing
-                        look = np.array([target[0], target[1],
-                                         look[2] + a * (target[2] - look[2])])
-                        dh = (h - heading + 180.0) % 360.0 - 180.0
-                        heading = heading + a * dh
-                        cam.lookat[:] = look
-                        cam.azimuth = heading + camera.azimuth_offset_deg
-                    if before_frame is not None:
-                        before_frame(d, renderer)
-                    renderer.update_scene(d, cam)
-                    append(renderer.render())
-                    n += 1
-            finally:
-                writer.close()
+        with atomic_video(path, fps=fps, macro_block_size=1) as append:
+            look, heading = None, None
+            for q in tqdm(frames, desc=f"rendering {Path(path).name}", unit="frame",
+                          leave=False, disable=not progress):
+                d.qpos[:] = q
+                mujoco.mj_forward(model, d)
+                if body >= 0:
+                    target = d.xpos[body].copy()
+                    h = _heading_deg(d.xmat[body])
+                    if look is None:
+                        look, heading = target, h
+                    a = camera.smoothing
+                    look = np.array([target[0], target[1],
+                                     look[2] + a * (target[2] - look[2])])
+                    dh = (h - heading + 180.0) % 360.0 - 180.0
+                    heading = heading + a * dh
+                    cam.lookat[:] = look
+                    cam.azimuth = heading + camera.azimuth_offset_deg
+                if before_frame is not None:
+                    before_frame(d, renderer)
+                renderer.update_scene(d, cam)
+                append(renderer.render())
+                n += 1
     finally:
         renderer.close()
     log.info("wrote %d frames to %s", n, path)

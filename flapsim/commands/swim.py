@@ -226,17 +226,10 @@ def run(args: argparse.Namespace) -> dict:
     with contextlib.ExitStack() as stack:
         on_frame = None
         if video:  # frames stream into a temporary file, renamed only when the swim succeeded
-            import imageio.v2 as imageio
+            from flapsim.io import atomic_video
 
-            from flapsim import interrupts
-            from flapsim.io import atomic_path
-
-            tmp = stack.enter_context(atomic_path(video, suffix=".mp4"))
-            writer = imageio.get_writer(tmp, fps=args.fps, codec="libx264", quality=7)
-            # closed on an exception too (imageio's __exit__ skips it; flapsim.modal.video)
-            stack.callback(writer.close)
-            # safe against signals while ffmpeg is forked (flapsim.interrupts)
-            on_frame = interrupts.checked(writer.append_data)
+            on_frame = stack.enter_context(atomic_video(video, fps=args.fps, codec="libx264",
+                                                        quality=7))
         try:
             result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
                           current=current, video_fps=args.fps if video else 0.0,

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from flapsim.errors import InputError, ModelError
-from flapsim.io import atomic_path
+from flapsim.io import atomic_video
 from flapsim.modal.analysis import ModalAnalysis, integrate_displacement
 
 log = logging.getLogger(__name__)
@@ -71,31 +71,19 @@ def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: flo
                  total: int | None = None, progress: bool = True) -> int:
     """Write RGB frames to an mp4 (ffmpeg from imageio-ffmpeg) or a looping gif, streaming
     (memory stays bounded), with a progress bar of ``total`` frames on stderr."""
-    import imageio.v2 as imageio
     from tqdm import tqdm
-
-    from flapsim import interrupts
 
     p = check_video_path(path)
     if not (math.isfinite(fps) and 0 < fps <= 1000):
         raise InputError(f"video frame rate must be > 0 and <= 1000 frames/s, got {fps}")
     count = 0
-    with atomic_path(p) as tmp:
-        if p.suffix.lower() == ".gif":
-            writer = imageio.get_writer(tmp, mode="I", duration=1000.0 / fps, loop=0)
-        else:
-            writer = imageio.get_writer(tmp, fps=fps, codec="libx264", macro_block_size=8)
-        # closed in a finally, not by `with writer`: imageio's __exit__ skips close() on an
-        # exception, and ffmpeg, closed only when the writer was collected, wrote the
-        # temporary video after the cleanup had removed it (SIGTERM under load)
-        try:
-            append = interrupts.checked(writer.append_data)  # see flapsim.interrupts
-            for frame in tqdm(frames, total=total, desc=f"rendering {p.name}", unit="frame",
-                              leave=False, disable=not progress):
-                append(frame)
-                count += 1
-        finally:
-            writer.close()
+    kw = (dict(mode="I", duration=1000.0 / fps, loop=0) if p.suffix.lower() == ".gif"
+          else dict(fps=fps, codec="libx264", macro_block_size=8))
+    with atomic_video(p, **kw) as append:
+        for frame in tqdm(frames, total=total, desc=f"rendering {p.name}", unit="frame",
+                          leave=False, disable=not progress):
+            append(frame)
+            count += 1
         if count == 0:
             raise InputError("no frames to write")
     return count

@@ -45,18 +45,12 @@ def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "",
     with contextlib.ExitStack() as stack:
         on_frame, fps = None, 0.0
         if opt.video_dir:
-            import imageio.v2 as imageio
-
-            from flapsim import interrupts
-            from flapsim.io import atomic_path
+            from flapsim.io import atomic_video
 
             out = Path(opt.video_dir) / f"{stem}.mp4"
-            tmp = stack.enter_context(atomic_path(out, suffix=".mp4"))
-            writer = imageio.get_writer(tmp, fps=opt.fps, codec="libx264", quality=7)
-            # closed on an exception too (imageio's __exit__ skips it; flapsim.modal.video)
-            stack.callback(writer.close)
-            # safe against signals while ffmpeg is forked (flapsim.interrupts)
-            on_frame, fps = interrupts.checked(writer.append_data), opt.fps
+            on_frame = stack.enter_context(atomic_video(out, fps=opt.fps, codec="libx264",
+                                                        quality=7))
+            fps = opt.fps
             files.append(str(out))
         r = swim(sc.params["stroke"], seconds, target=target, layers=opt.layers, video_fps=fps,
                  video_size=(opt.size[1], opt.size[0]), on_frame=on_frame, **kw)
