@@ -82,7 +82,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_regression_arguments(p)
     p.add_argument("--bank-lead", type=float, default=None, metavar="S",
                    help="flight: the path target asks the bank its recovery curve has S seconds "
-                        "after the wingbeat's end (default 0.3; 0: at the end, the paper's; "
+                        "after the wingbeat's end (default 0.2 for the rigid dove, 0.3 with modal "
+                        "feathers; 0: at the end, the paper's; "
                         "--table1 uses 0)")
     p.add_argument("--speed", type=float, default=None, metavar="M_S",
                    help="flight: the speed asked of every flight, m/s (default 7, the paper's; the "

@@ -85,8 +85,8 @@ class EvalOptions:
     predict: str = "simulate"
     """Flight: how the controller finds S0 (:func:`flapsim.bird.controller.load_controller`)."""
     bank_lead_s: float | None = None
-    """Flight: the path target asks the bank this long ahead, s (None: its default, 0.3;
-    0: at the wingbeat's end, the paper's)."""
+    """Flight: the path target asks the bank this long ahead, s (None: the dove's default,
+    :data:`flapsim.bird.tasks.DEFAULT_BANK_LEAD_S`; 0: at the wingbeat's end, the paper's)."""
     speed: float | None = None
     """Flight: the speed asked of every flight, m/s (None: each task's own, 7)."""
     aoa_per_g_deg: float | None = None
