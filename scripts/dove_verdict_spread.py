@@ -80,6 +80,17 @@ def _user_paths() -> dict:
     return PATHS
 
 
+def _value(text: str) -> int | float | str:
+    """A ``--set`` value: a number where it reads as one (refine=3, carry=0.3), else the text
+    (db=seed1.db, refine_goal=reachable)."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenario")
@@ -91,13 +102,13 @@ def main() -> None:
     ap.add_argument("--refine-goal", choices=("full", "reachable"), default=None)
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="an evaluation option (flapsim.scenarios.EvalOptions), e.g. "
-                         "bank_lead_s=0.4, carry=0.3, refine=3; repeatable")
+                         "bank_lead_s=0.4, carry=0.3, refine=3, db=seed1.db; repeatable")
     ap.add_argument("--json")
     a = ap.parse_args()
     options: dict = {"refine_goal": a.refine_goal}
     for item in a.set:
         key, _, value = item.partition("=")
-        options[key] = int(value) if value.lstrip("-").isdigit() else float(value)
+        options[key] = _value(value)
     from flapsim import scenarios
 
     names = [n for token in a.scenario.split(",")

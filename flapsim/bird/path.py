@@ -297,7 +297,7 @@ class PathTarget:
     """The nose is asked this much higher above the flight path per g of the turn's load
     factor above 1, deg (:func:`~flapsim.bird.controller.target_state`'s ``aoa_per_g``; 0: the
     level trim's angle of attack in every turn, the paper's). Tasks default to the dove's
-    :data:`~flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG` (30 for rigid feathers, with the
+    :data:`~flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG` (40 for rigid feathers, with the
     controller's carry; README, "Carrying the last wingbeat")."""
     turn_load_factor: float = 0.0
     """Slowing for tight turns (0, the default: the speed asked is ``speed`` everywhere, the

@@ -91,7 +91,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "there, see the README)")
     p.add_argument("--aoa-per-g", type=float, default=None, metavar="DEG",
                    help="flight: the path target asks DEG more angle of attack per g of a turn's "
-                        "load factor (default 30 for rigid feathers, 0 for modal ones; 0: the "
+                        "load factor (default 40 for rigid feathers, 0 for modal ones; 0: the "
                         "paper's; see the README)")
     p.add_argument("--speed-first", type=float, default=None, metavar="K",
                    help="flight: the climb asked drops K rad per m/s of airspeed below the speed "
