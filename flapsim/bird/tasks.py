@@ -32,8 +32,9 @@ from flapsim.errors import InputError, SimulationError
 #: wingbeat" and "More angle of attack in turns"): 30 for the rigid dove from session 12 (its
 #: carry, five databases, no corrections), 40 since session 20, measured with the corrections
 #: and the 0.2 s bank lead over starts under 1 mm/s apart (the ten user paths and the level
-#: and 15 deg climbing circles: 108 of 120 completed against 98 with 30, 62 with 20). Modal
-#: feathers keep 0 with their carry of 0.
+#: and 15 deg climbing circles: 108 of 120 completed against 98 with 30, 62 with 20; over
+#: three database draws 219 of 360 against 181, and 217 with 50). Modal feathers keep 0 with
+#: their carry of 0.
 DEFAULT_AOA_PER_G_DEG = {"rigid": 40.0, "modal": 0.0}
 
 #: How far ahead the path target asks the bank, s, per dove
