@@ -29,12 +29,12 @@ from flapsim.errors import InputError, SimulationError
 
 #: The path target's default extra angle of attack per g of a turn's load factor, deg, per
 #: dove (:attr:`~flapsim.bird.path.PathTarget.aoa_per_g_deg`; README, "Carrying the last
-#: wingbeat" and "More angle of attack in turns"): 30 for the rigid dove from session 12 (its
-#: carry, five databases, no corrections), 40 since session 20, measured with the corrections
-#: and the 0.2 s bank lead over starts under 1 mm/s apart (the ten user paths and the level
-#: and 15 deg climbing circles: 108 of 120 completed against 98 with 30, 62 with 20; over
-#: three database draws 219 of 360 against 181, and 217 with 50). Modal feathers keep 0 with
-#: their carry of 0.
+#: wingbeat" and "More angle of attack in turns, measured again"): 30 for the rigid dove from
+#: session 12 (its carry, five databases, no corrections), 40 since session 20, measured with
+#: the corrections and the 0.2 s bank lead over starts under 1 mm/s apart (the ten user paths
+#: and the level and 15 deg climbing circles: 108 of 120 completed against 98 with 30, 62 with
+#: 20; over three database draws 219 of 360 against 181, and 217 with 50). Modal feathers keep
+#: 0 with their carry of 0.
 DEFAULT_AOA_PER_G_DEG = {"rigid": 40.0, "modal": 0.0}
 
 #: How far ahead the path target asks the bank, s, per dove
