@@ -13,7 +13,7 @@ edge, or beyond it.
         [--json out.json]
 
 NAME: a path scenario (``flapsim eval --list``: figure8*, sinusoid*, climb-turn-*, plucked-*,
-wind-*) or one of ``scripts/dove_user_paths.py``'s paths (``user``: all ten). The draws are
+wind-*) or one of :data:`flapsim.bird.paths.USER_PATHS` (``user``: all ten). The draws are
 reproducible (``--seed``); the first start is the unperturbed one. About half a run's flight
 time per run on 2 workers.
 """
@@ -26,39 +26,21 @@ import time
 
 import numpy as np
 
+from flapsim.bird.paths import USER_PATHS
 from flapsim.io import write_json
-
-_JITTER = 0.0
-
-
-def _init() -> None:
-    """In each worker: every path start gets the run's forward-speed change (``_JITTER``)."""
-    from flapsim.bird import tasks
-
-    original = tasks.start_on_path
-
-    def jittered(fl, *args, **kwargs):
-        original(fl, *args, **kwargs)
-        # along the velocity: the start's speed, not its direction, changes
-        v = fl.data.qvel[0:3]
-        v += _JITTER * v / max(float(np.linalg.norm(v)), 1e-9)
-
-    tasks.start_on_path = jittered
 
 
 def _fly(job: tuple[str, float, dict]) -> dict:
-    global _JITTER
     name, dv, options = job
-    _JITTER = dv
     from flapsim import scenarios
 
-    opt = scenarios.EvalOptions(**options)
-    if name in _user_paths():
-        from flapsim.bird.path import FlightPath
+    # the start's forward speed changed by dv: the speed, not the direction
+    opt = scenarios.EvalOptions(**options, start_speed_change=dv)
+    if name in USER_PATHS:
         from flapsim.bird.tasks import Task
         from flapsim.scenarios.flight import _fly_task  # the options applied as eval applies them
 
-        t = _fly_task(Task(FlightPath(_user_paths()[name]())), opt, False)
+        t = _fly_task(Task(USER_PATHS[name]()), opt, False)
         m = t.metrics
         return {"name": name, "dv_m_s": dv, "status": t.status, "note": m.get("note", ""),
                 "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
@@ -67,17 +49,6 @@ def _fly(job: tuple[str, float, dict]) -> dict:
     m = r.get("metrics", {})
     return {"name": name, "dv_m_s": dv, "status": r.get("status"), "note": r.get("reason", ""),
             "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
-
-
-def _user_paths() -> dict:
-    """The ten user paths of ``scripts/dove_user_paths.py`` (``user`` names them all)."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from dove_user_paths import PATHS
-
-    return PATHS
 
 
 def _value(text: str) -> int | float | str:
@@ -112,9 +83,9 @@ def main() -> None:
     from flapsim import scenarios
 
     names = [n for token in a.scenario.split(",")
-             for n in (list(_user_paths()) if token == "user" else [token])]
+             for n in (list(USER_PATHS) if token == "user" else [token])]
     for name in names:
-        if name in _user_paths():
+        if name in USER_PATHS:
             continue
         sc = scenarios.get(name)
         if sc.family != "flight" or sc.runner.__name__ != "run_path":
@@ -122,7 +93,7 @@ def main() -> None:
     dvs = [0.0] + list(np.random.default_rng(a.seed).uniform(-a.jitter, a.jitter, a.n - 1))
     jobs = [(name, float(dv), options) for name in names for dv in dvs]
     t0 = time.perf_counter()
-    with mp.get_context("spawn").Pool(a.workers, initializer=_init) as pool:
+    with mp.get_context("spawn").Pool(a.workers) as pool:
         rows = pool.map(_fly, jobs, chunksize=1)
     wall = time.perf_counter() - t0
     counts = {}

@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import mujoco
 import numpy as np
 
 from flapsim.bird import cycle
@@ -182,6 +183,16 @@ class Task:
     turn_speed_floor: float | None = None
     """The lowest speed asked for a turn, m/s (None: the path target's, 6.5 m/s, or ``speed``
     when that is lower)."""
+    start_speed_change: float = 0.0
+    """Added to the start's ground speed along its velocity, m/s (0, the default). Near its
+    limits a controlled flight is chaotic and one start's verdict says little: verdict-spread
+    studies fly a path from starts under 1 mm/s apart (``scripts/dove_verdict_spread.py``)."""
+
+    def __post_init__(self) -> None:
+        dv = self.start_speed_change
+        if isinstance(dv, bool) or not isinstance(dv, (int, float)) or not abs(dv) <= 1.0:
+            raise InputError(f"the start's speed change must be a number within +-1 m/s (a "
+                             f"perturbation, not another speed: see speed), got {dv!r}")
 
 
 def _per_dove(table: dict, feathers: str, asked: float | None) -> float:
@@ -294,6 +305,10 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         v_start = target.speed_for(0.0, 2.0 * target.lookahead_s * task.speed)
         start_on_path(fl, ctl.P0, task.path, v_start,
                       wind=None if target.wind is None else target.wind(task.path.point(0.0), 0.0))
+        if task.start_speed_change:
+            v = fl.data.qvel[0:3]  # along the velocity: the speed changes, not the direction
+            v += task.start_speed_change * v / max(float(np.linalg.norm(v)), 1e-9)
+            mujoco.mj_forward(fl.model, fl.data)
         if hasattr(ctl, "reset"):
             ctl.reset()  # a new flight: nothing carried from an earlier one
         r = _fly(fl, ctl, target, task, record, progress)

@@ -100,6 +100,9 @@ class EvalOptions:
     (None: the task's, 0 = no slowing; :attr:`flapsim.bird.tasks.Task.turn_load_factor`)."""
     turn_speed_floor: float | None = None
     """Flight: the lowest speed asked for a turn, m/s (None: the task's)."""
+    start_speed_change: float | None = None
+    """Flight: added to each path's start speed, m/s (None: the task's, 0; a perturbation
+    within +-1 m/s for verdict-spread studies, :attr:`flapsim.bird.tasks.Task.start_speed_change`)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"

@@ -603,3 +603,63 @@ def test_speed_first_finishes_a_7_deg_climb_sooner_and_both_make_way():
     r = fly_task(Task(path, climb_per_speed_deficit=0.0), refine=0)
     assert r.status == "completed", r.reason
     assert r.metrics["simulated_s"] > old_clock
+
+
+def test_the_held_out_user_paths_are_the_helices_and_turns_they_are_named_for():
+    # closed form: a helix of radius R climbing at angle g has curvature cos(g)^2 / R and a
+    # constant climb g; away from the natural spline's ends it is within 0.5 % (48 points a
+    # turn, as above). Sides: a left turn from heading +x goes to +y. Every path is inside the
+    # envelope the issue promises (turn radius >= 3 m, climb <= 30 deg) where it is not bent
+    # by the spline's ends, and none is a scenario's shape.
+    from flapsim.bird.paths import USER_PATHS
+
+    helices = {"circle-3-left": (3, 0, 1), "circle-3-right": (3, 0, -1), "circle-4-left": (4, 0, 1),
+               "circle-4-right": (4, 0, -1), "helix-3-up-3-right": (3, 3, -1),
+               "helix-4-up-5": (4, 5, 1), "helix-5-up-8": (5, 8, 1),
+               "helix-3-down-10-right": (3, -10, -1)}
+    assert set(USER_PATHS) == set(helices) | {"s-curve-3.5", "climb-then-turn"}
+    for name, (R, climb, side) in helices.items():
+        path = USER_PATHS[name]()
+        s = np.linspace(0.25, 0.75, 50) * path.length
+        np.testing.assert_allclose(path.curvature(s), np.cos(np.radians(climb)) ** 2 / R, rtol=5e-3,
+                                   err_msg=name)
+        t = path.tangent(s)
+        np.testing.assert_allclose(np.degrees(np.arcsin(t[:, 2])), climb, atol=0.05, err_msg=name)
+        np.testing.assert_allclose(path.tangent(0.0)[:2], [1.0, 0.0], atol=0.05, err_msg=name)
+        assert np.sign(path.point(0.25 * path.length)[1]) == side, name
+    s_path = USER_PATHS["s-curve-3.5"]()
+    mid = np.array([0.3, 0.7]) * s_path.length  # one point in each half circle
+    np.testing.assert_allclose(s_path.curvature(mid), 1 / 3.5, rtol=0.02)
+    climb = USER_PATHS["climb-then-turn"]().geometry()
+    assert climb.max_climb_deg <= 30.0 and climb.min_radius_m >= 3.0
+
+
+def test_a_start_speed_change_changes_the_starts_speed_and_nothing_else(monkeypatch):
+    # verdict-spread studies perturb the start along its velocity: the speed by exactly dv
+    # (to rounding), the direction and the position not at all
+    from flapsim.bird import tasks
+    from flapsim.bird.paths import helix
+
+    seen = []
+
+    def capture(fl, ctl, target, task, record, progress):
+        seen.append((fl.data.qpos[0:3].copy(), fl.data.qvel[0:3].copy()))
+        raise RuntimeError("seen")
+
+    monkeypatch.setattr(tasks, "_fly", capture)
+    path = helix(4.0, 5.0, 1.0)
+    fl, ctl = tasks.build_flight(tasks.Task(path))
+    try:
+        for dv in (0.0, 0.25, -1e-3):
+            with pytest.raises(RuntimeError, match="seen"):
+                tasks.fly_task(tasks.Task(path, start_speed_change=dv), controller=ctl)
+    finally:
+        fl.close()
+    (p0, v0), (p1, v1), (p2, v2) = seen
+    assert np.linalg.norm(v1) - np.linalg.norm(v0) == pytest.approx(0.25, abs=1e-12)
+    assert np.linalg.norm(v2) - np.linalg.norm(v0) == pytest.approx(-1e-3, abs=1e-12)
+    np.testing.assert_allclose(v1 / np.linalg.norm(v1), v0 / np.linalg.norm(v0), atol=1e-12)
+    np.testing.assert_array_equal(p1, p0)
+    for bad in (float("nan"), 1.5, "0.1", True):
+        with pytest.raises(InputError, match="start's speed change"):
+            tasks.Task(path, start_speed_change=bad)
