@@ -18,7 +18,8 @@ HELP = ("evaluate controllers on named scenarios (figure of eight, pushes, fores
 EXIT_STATUS = ("  1    a scenario failed or its animal got lost (the table and JSON still say which)\n"
                "  130, 143: with --json PATH the runs finished so far stay in PATH.partial, and\n"
                "       the same command again resumes from them")
-SEED_HELP = "random seed of the scenarios that draw (forest trees, flock perturbations; default 0)"
+SEED_HELP = ("random seed of the scenarios that draw (forest trees, flock perturbations) and of "
+             "--starts' speed changes (default 0)")
 
 TABLE1_SIZES = (2000, 5000, 10000, 20000)
 TABLE1_K_PERCENT = (2.0, 1.0, 0.5, 0.3)
@@ -117,6 +118,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--video", metavar="DIR", default=None, help="write an mp4 per run (chase camera)")
     p.add_argument("--quick", action="store_true",
                    help="short variants of every scenario (smoke runs; numbers not comparable)")
+    p.add_argument("--starts", type=int, default=1, metavar="N",
+                   help="flight: fly each scenario from N starts, the first as it is and the others "
+                        "with its forward speed changed by at most --start-jitter, and report how "
+                        "many complete (default 1). Near its limits a controlled flight is chaotic "
+                        "and one verdict says little; plots and videos: the first start's")
+    p.add_argument("--start-jitter", type=float, default=0.001, metavar="M_S",
+                   help="with --starts: the largest change of the start's speed, m/s (default "
+                        "0.001: far below anything physical)")
     p.add_argument("--table1", action="store_true",
                    help="reproduce the paper's Table I on --scenario (default figure8, with ascending "
                         "and descending turns): "
@@ -210,8 +219,10 @@ def run(args: argparse.Namespace) -> dict:
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
     if args.table1:
+        if args.starts != 1:
+            raise InputError("--table1 flies one start per database; drop --starts")
         return _table1(args, opts)
-    runs = [(n, opts) for n in _names(args)]
+    runs = start_runs(_names(args), opts, args)
     if args.db and any(scenarios.get(n).family == "flight" for n, _ in runs):
         _check_db_model(args.db, args.feathers)
     for d in (plots, video):
@@ -219,12 +230,72 @@ def run(args: argparse.Namespace) -> dict:
             Path(d).mkdir(exist_ok=True)
     journal = open_journal(args, runs)
     results = execute(runs, args.workers, args.backend, args.address, journal)
+    for r, (_, o) in zip(results, runs, strict=True):
+        if args.starts > 1:
+            r["start_speed_change_m_s"] = o.start_speed_change
     print_table(results)
     failed = [r["scenario"] for r in results if not r.get("ok")]
-    return {"scenarios": results, "runs": len(results), "failed": failed,
-            "exit_status": 1 if failed else 0,
-            "resumed_runs": journal.resumed if journal is not None else 0,
-            "options": opts.to_dict()}
+    out = {"scenarios": results, "runs": len(results), "failed": failed,
+           "exit_status": 1 if failed else 0,
+           "resumed_runs": journal.resumed if journal is not None else 0,
+           "options": opts.to_dict()}
+    if args.starts > 1:
+        out["starts"] = print_spread(results, args.starts, args.start_jitter, args.seed)
+    return out
+
+
+def start_runs(names: list[str], opts, args: argparse.Namespace) -> list[tuple[str, object]]:
+    """``(scenario, options)`` for each scenario and start (``--starts``, ``--start-jitter``):
+    the start as it is, then its forward speed changed (:func:`flapsim.scenarios.start_speed_changes`);
+    only the first start writes plots and videos (they would overwrite each other)."""
+    import dataclasses
+
+    from flapsim import scenarios
+
+    n, jitter = args.starts, args.start_jitter
+    if not 1 <= n <= 1000:
+        raise InputError(f"--starts must be 1..1000, got {n}")
+    if not (math.isfinite(jitter) and 0.0 < jitter <= 0.1):
+        raise InputError(f"--start-jitter must be above 0 and at most 0.1 m/s (a perturbation far "
+                         f"below the flight's speed), got {jitter}")
+    if n == 1:
+        return [(name, opts) for name in names]
+    other = [name for name in names if scenarios.get(name).family != "flight"]
+    if other:
+        raise InputError(f"--starts perturbs the dove's start: flight scenarios only, not "
+                         f"{', '.join(other)}")
+    runs = []
+    for name in names:
+        for i, dv in enumerate(scenarios.start_speed_changes(n, jitter, args.seed)):
+            o = dataclasses.replace(opts, start_speed_change=dv)
+            if i:
+                o = dataclasses.replace(o, plots_dir=None, video_dir=None)
+            runs.append((name, o))
+    return runs
+
+
+def print_spread(results: list[dict], n: int, jitter: float, seed: int) -> dict:
+    """Completion over the starts of each scenario (``--starts``), with Wilson's 95 % interval
+    and the spread of the largest distance from the path; the JSON's ``starts``."""
+    from flapsim.scenarios import completion_interval
+
+    by: dict[str, list[dict]] = {}
+    for r in results:
+        by.setdefault(r["scenario"], []).append(r)
+    rows = {}
+    print(f"\ncompleted over {n} starts (the first as it is, the others up to {jitter * 1e3:g} mm/s "
+          f"faster or slower; seed {seed}):")
+    for name, rs in by.items():
+        k = sum(r["status"] == "completed" for r in rs)
+        lo, hi = completion_interval(k, len(rs))
+        far = [r.get("metrics", {}).get("max_path_distance") for r in rs]
+        far = [f for f in far if f is not None]
+        rows[name] = {"completed": k, "starts": len(rs), "rate": k / len(rs),
+                      "rate_95": [lo, hi],
+                      "max_path_distance_range_m": [min(far), max(far)] if far else None}
+        span = f"; largest distance {min(far):.2f}-{max(far):.2f} m" if far else ""
+        print(f"  {name:<22} {k:>4} of {len(rs):<4} ({100 * lo:.0f}-{100 * hi:.0f} % at 95 %){span}")
+    return {"n": n, "jitter_m_s": jitter, "seed": seed, "scenarios": rows}
 
 
 def _check_db_model(db: str, feathers: str) -> None:
@@ -366,6 +437,8 @@ def print_table(results: list[dict]) -> None:
                              f"({m['speed_asked']:g} asked)")
             elif "collisions" in m and r["scenario"] == "forest":
                 note = f"{m['collisions']} collisions" + (f"; {note}" if note else "")
+            if r.get("start_speed_change_m_s") is not None:
+                note = f"start {1e3 * r['start_speed_change_m_s']:+.3f} mm/s" + (f"; {note}" if note else "")
             print(f"{r['scenario']:<16} {r['status']:<10} {_fmt(m.get('Ep_per_wingbeat')):>7} "
                   f"{_fmt(m.get('Er_per_wingbeat')):>7} {_fmt(m.get('Eo_per_wingbeat')):>7} "
                   f"{_fmt(m.get('Ef_per_wingbeat')):>7} {_fmt(m.get('max_path_distance'), 2):>7} "

@@ -179,6 +179,30 @@ def run_scenario(name: str, options: EvalOptions) -> dict:
             "wall_s": time.perf_counter() - t0}
 
 
+def start_speed_changes(n: int, jitter_m_s: float, seed: int = 0) -> list[float]:
+    """The starts of a verdict spread (``flapsim eval --starts N``): 0, the start as it is,
+    then ``n - 1`` changes of its forward speed drawn uniformly within +-``jitter_m_s`` (m/s),
+    the same for the same ``seed``. Near its limits a controlled flight is chaotic, and one
+    start's verdict says little; a completion rate over starts under 1 mm/s apart says whether
+    a path is within reach, at its edge or beyond it."""
+    import numpy as np
+
+    draws = np.random.default_rng(seed).uniform(-jitter_m_s, jitter_m_s, max(n - 1, 0))
+    return [0.0] + [float(x) for x in draws]
+
+
+def completion_interval(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson's score interval for a completion rate of ``k`` of ``n`` starts (95 % with the
+    default ``z``): unlike k/n +- z sqrt(p(1-p)/n) it stays within [0, 1] and is not empty at
+    0 or n of n, where a spread's counts often are."""
+    if not 0 <= k <= n or n < 1:
+        raise InputError(f"a completion rate needs 0 <= k <= n and n >= 1, got {k} of {n}")
+    z2 = z * z
+    centre = (k + z2 / 2) / (n + z2)
+    half = z * (k * (n - k) / n + z2 / 4) ** 0.5 / (n + z2)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
 @dataclass
 class RunsConfig:
     """What :class:`EvalWorker` runs: ``runs[i] = (scenario name, options)`` for chunk

@@ -355,3 +355,48 @@ def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
     _paper_protocol(o)
     assert (o.k_dense, o.bank_lead_s, o.carry, o.aoa_per_g_deg, o.speed, o.turn_load_factor,
             o.climb_per_speed_deficit, o.refine) == (0, 0.0, 0.0, 0.0, None, 0.0, 0.0, 0)
+
+
+def test_wilsons_interval_is_its_closed_form():
+    # Wilson's score interval, from its formula worked by hand: 7 of 10 at z = 1.96 is
+    # (7 + 1.9208 -+ 1.96 sqrt(2.1 + 0.9604)) / 13.8416 = 0.3968..0.8922 (the textbook values);
+    # 0 of 10 starts at 0 and 10 of 10 ends at 1, never an empty interval
+    lo, hi = scenarios.completion_interval(7, 10)
+    assert (lo, hi) == pytest.approx((0.3968, 0.8922), abs=1e-4)
+    assert scenarios.completion_interval(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
+    assert scenarios.completion_interval(10, 10) == pytest.approx((0.7225, 1.0), abs=1e-4)
+    with pytest.raises(InputError, match="completion rate"):
+        scenarios.completion_interval(3, 2)
+
+
+def test_eval_starts_flies_each_scenario_from_perturbed_starts_and_counts_them(tmp_path, capsys):
+    # three starts of the quick level 3.6 m circle: the first as it is, the other two with the
+    # forward speed changed by the seed's uniform draws within +-1 mm/s (drawn here
+    # independently); each run reaches the flight (the largest distances differ: a change of
+    # 0.3 mm/s that never reached the dove would fly the same metres to the last digit), and
+    # the count is the runs' own verdicts
+    js = tmp_path / "s.json"
+    main(["eval", "--scenario", "climb-turn-0", "--quick", "--starts", "3", "--workers", "1",
+          "--json", str(js)])
+    out = json.loads(js.read_text())
+    runs = out["scenarios"]
+    want = [0.0, *np.random.default_rng(0).uniform(-1e-3, 1e-3, 2)]
+    assert [r["start_speed_change_m_s"] for r in runs] == pytest.approx(want, abs=1e-15)
+    far = [r["metrics"]["max_path_distance"] for r in runs]
+    assert len(set(far)) == 3, far
+    spread = out["starts"]["scenarios"]["climb-turn-0"]
+    k = sum(r["status"] == "completed" for r in runs)
+    assert (spread["completed"], spread["starts"]) == (k, 3)
+    assert spread["max_path_distance_range_m"] == [min(far), max(far)]
+    assert "completed over 3 starts" in capsys.readouterr().out
+
+
+def test_eval_starts_errors_are_one_line(capsys):
+    for argv, words in ((["--starts", "0"], "--starts must be"),
+                        (["--starts", "2", "--start-jitter", "nan"], "--start-jitter"),
+                        (["--starts", "2", "--start-jitter", "0.5"], "--start-jitter"),
+                        (["--starts", "2", "--scenario", "swim-cross-current"], "flight scenarios only"),
+                        (["--starts", "2", "--table1"], "drop --starts")):
+        assert main(["eval", *argv]) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.strip().splitlines()) == 1, err
