@@ -1,6 +1,7 @@
 """How firm a flight scenario's verdict is: the scenario flown N times, each start's forward
 speed changed by a draw far below anything physical (default +-1 mm/s), and the verdicts
-counted.
+counted. ``flapsim eval --starts N`` does the same for any scenario or path file; this script
+adds the ten held-out user paths (``user``) and any evaluation option (``--set``).
 
 A controlled flight is chaotic: near the limits of what the dove can do, one run's verdict
 turns on last-bit differences (session 18: the same commit lost ``climb-turn-15`` here where
@@ -23,8 +24,6 @@ from __future__ import annotations
 import argparse
 import multiprocessing as mp
 import time
-
-import numpy as np
 
 from flapsim.bird.paths import USER_PATHS
 from flapsim.io import write_json
@@ -90,7 +89,7 @@ def main() -> None:
         sc = scenarios.get(name)
         if sc.family != "flight" or sc.runner.__name__ != "run_path":
             raise SystemExit(f"{name}: not a path scenario (see the module docstring)")
-    dvs = [0.0] + list(np.random.default_rng(a.seed).uniform(-a.jitter, a.jitter, a.n - 1))
+    dvs = scenarios.start_speed_changes(a.n, a.jitter, a.seed)  # as flapsim eval --starts draws
     jobs = [(name, float(dv), options) for name in names for dv in dvs]
     t0 = time.perf_counter()
     with mp.get_context("spawn").Pool(a.workers) as pool:
@@ -103,7 +102,9 @@ def main() -> None:
               f"{r['note']}")
         counts[r["name"]] = counts.get(r["name"], 0) + (r["status"] == "completed")
     for name, done in counts.items():
-        print(f"{name}: completed {done} of {len(dvs)} starts within +-{a.jitter * 1e3:g} mm/s")
+        lo, hi = scenarios.completion_interval(done, len(dvs))
+        print(f"{name}: completed {done} of {len(dvs)} starts within +-{a.jitter * 1e3:g} mm/s "
+              f"({100 * lo:.0f}-{100 * hi:.0f} % at 95 %)")
     print(f"{sum(counts.values())} of {len(rows)} in all ({wall:.0f} s)")
     if a.json:
         write_json(a.json, {"scenarios": names, "jitter_m_s": a.jitter, "seed": a.seed,
