@@ -70,8 +70,8 @@ def check_regression_options(args: argparse.Namespace) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default=None, metavar="NAME",
-                   help=f"scenario name, several comma-separated, or 'all' (default {DEFAULT_SCENARIO}; "
-                        "--list shows them)")
+                   help=f"scenario name, several comma-separated, 'all', or one family's part of "
+                        f"it: 'flight' or 'swim' (default {DEFAULT_SCENARIO}; --list shows them)")
     p.add_argument("--list", action="store_true", help="list the scenarios and exit")
     add_input_arg(p, "--path", metavar="FILE",
                   help="fly a path file of yours (CSV with header x,y,z, or JSON list of [x,y,z])")
@@ -165,6 +165,8 @@ def _names(args: argparse.Namespace) -> list[str]:
     spec = args.scenario or DEFAULT_SCENARIO
     if spec == "all":
         return scenarios.names(all_only=True)
+    if spec in ("flight", "swim"):  # one family's part of 'all'
+        return scenarios.names(family=spec, all_only=True)
     out = []
     for name in (s.strip() for s in spec.split(",")):
         scenarios.get(name)  # one-line error naming the known ones
@@ -263,7 +265,7 @@ def start_runs(names: list[str], opts, args: argparse.Namespace) -> list[tuple[s
     other = [name for name in names if scenarios.get(name).family != "flight"]
     if other:
         raise InputError(f"--starts perturbs the dove's start: flight scenarios only, not "
-                         f"{', '.join(other)}")
+                         f"{', '.join(other)} (--scenario flight: the flight part of 'all')")
     runs = []
     for name in names:
         for i, dv in enumerate(scenarios.start_speed_changes(n, jitter, args.seed)):

@@ -395,8 +395,22 @@ def test_eval_starts_errors_are_one_line(capsys):
     for argv, words in ((["--starts", "0"], "--starts must be"),
                         (["--starts", "2", "--start-jitter", "nan"], "--start-jitter"),
                         (["--starts", "2", "--start-jitter", "0.5"], "--start-jitter"),
-                        (["--starts", "2", "--scenario", "swim-cross-current"], "flight scenarios only"),
+                        (["--starts", "2", "--scenario", "swim-cross-current"], "--scenario flight"),
                         (["--starts", "2", "--table1"], "drop --starts")):
         assert main(["eval", *argv]) == 2
         err = capsys.readouterr().err
         assert words in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_family_name_selects_its_part_of_all():
+    # 'flight' and 'swim' split 'all' by family (what --starts needs: flight only), in order
+    import argparse
+
+    from flapsim.commands.eval import _names
+
+    every = scenarios.names(all_only=True)
+    for family in ("flight", "swim"):
+        got = _names(argparse.Namespace(path=None, scenario=family))
+        assert got == [n for n in every if scenarios.get(n).family == family]
+    assert sorted(_names(argparse.Namespace(path=None, scenario="flight"))
+                  + _names(argparse.Namespace(path=None, scenario="swim"))) == sorted(every)
