@@ -216,6 +216,7 @@ def run_controller(args: argparse.Namespace) -> dict:
         attach_predictor,
         fly_controlled,
         load_controller,
+        make_lookahead,
         start_cruise,
         trim_of_base_flight,
     )
@@ -233,14 +234,20 @@ def run_controller(args: argparse.Namespace) -> dict:
         reg = attach_predictor(load_controller(fl, db), db)
         # the same regression (one database load), 0, 1 and 2 corrections
         refined = [(f"learned_refine{r}", dataclasses.replace(ctl, refine=r)) for r in (0, 1, 2)]
+        # the next wingbeat's reference simulated on a second core: the same flight, sooner
+        ahead = dataclasses.replace(ctl, lookahead=make_lookahead(fl, "on", ctl.refine, "simulate"))
+        flown = {}
         trim = trim_of_base_flight(fl, ctl.P0)
         res = {}
-        for name, c in (("learned", ctl), ("learned_coarse", coarse), ("learned_regression", reg),
-                        *refined, ("base", BaseController(fl, ctl.P0))):
+        for name, c in (("learned", ctl), ("learned_lookahead", ahead), ("learned_coarse", coarse),
+                        ("learned_regression", reg), *refined, ("base", BaseController(fl, ctl.P0))):
             start_cruise(fl, ctl.P0)
             fly_controlled(c, CruiseTarget(trim, altitude=10.0), 1)  # warm-up: the coarse twin
             start_cruise(fl, ctl.P0)
+            if hasattr(c, "reset"):
+                c.reset()  # the same start for every variant: their flights compare to the bit
             f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
+            flown[name] = f.positions
             res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
                          "real_time_factor": f.simulated_s / f.wall_time}
         start_cruise(fl, ctl.P0)
@@ -263,6 +270,7 @@ def run_controller(args: argparse.Namespace) -> dict:
     finally:
         fl.close()
     bare = res["bare_rollout"]["real_time_factor"]
+    lookahead_same = bool(np.array_equal(flown["learned"], flown["learned_lookahead"]))
     out = {
         "target": "controller",
         "feathers": feathers,
@@ -270,6 +278,11 @@ def run_controller(args: argparse.Namespace) -> dict:
         "method": ctl.regressor.method,
         "k": ctl.regressor.k,
         "real_time_factor": res["learned"]["real_time_factor"],
+        "real_time_factor_lookahead": res["learned_lookahead"]["real_time_factor"],
+        "lookahead_speedup": (res["learned_lookahead"]["real_time_factor"]
+                              / res["learned"]["real_time_factor"]),
+        "lookahead_same_flight": lookahead_same,
+        "lookahead_hits": [ahead.lookahead.hits, ahead.lookahead.misses],
         "real_time_factor_coarse": res["learned_coarse"]["real_time_factor"],
         "real_time_factor_regression": res["learned_regression"]["real_time_factor"],
         "refine": ctl.refine,
@@ -284,6 +297,9 @@ def run_controller(args: argparse.Namespace) -> dict:
           f"{out['database_samples']} samples): "
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
+    print(f"  --lookahead on (the next reference on a second core): {out['real_time_factor_lookahead']:.1f}x "
+          f"real time, {out['lookahead_speedup']:.2f}x the default's, "
+          f"{'the same flight to the bit' if lookahead_same else 'A DIFFERENT FLIGHT (a bug)'}")
     print(f"  --predict coarse: {out['real_time_factor_coarse']:.1f}x real time; --predict regression: "
           f"{out['real_time_factor_regression']:.1f}x")
     rf = out["real_time_factor_refine"]

@@ -47,6 +47,7 @@ from scipy.spatial import cKDTree
 
 from flapsim.bird import cycle
 from flapsim.bird.flight import DoveFlight, FlightConfig
+from flapsim.bird.lookahead import ReferenceLookahead
 from flapsim.bird.model import MIRROR_PERM
 from flapsim.bird.sampling import pose_quat, project_to_ranges
 from flapsim.bird.wingbeat import N_PARAMS, ReferenceWingbeat, p0, with_tail_bias
@@ -837,6 +838,12 @@ class WingbeatController:
     model holds near the samples' calm, near-level start states; in a steep bank the same dP
     rolls the bird differently (measured: asked -8.7 deg of roll, flown -45.6), and the
     simulation sees it. Each correction costs one wingbeat's simulation."""
+    lookahead: ReferenceLookahead | None = None
+    """None (default): each wingbeat's reference is simulated when it is needed. A
+    :class:`~flapsim.bird.lookahead.ReferenceLookahead` (:func:`enable_lookahead`): with
+    ``refine`` > 0 and S0 simulated, the next wingbeat's reference is simulated from each
+    best-so-far candidate's end in a second thread while the next correction runs; the flight
+    is the same to the bit, the wall time shorter on two free cores."""
     refine_goal: str = "full"
     """What the corrections aim at and rank by (:data:`REFINE_GOALS`): ``full``, the target
     (the default here; :func:`load_controller` uses :data:`DEFAULT_REFINE_GOAL`), or
@@ -867,12 +874,17 @@ class WingbeatController:
         self._last = None
         if self.predictor is not None:
             self.predictor.reset()
+        if self.lookahead is not None:
+            self.lookahead.drop()
 
     def reference_params(self) -> np.ndarray:
         """The wingbeat simulated for S0 and added to: P0 + carry (P_last - P0)."""
-        if self.carry == 0.0 or self._last is None:
+        return self._reference_after(self._last)
+
+    def _reference_after(self, last: np.ndarray | None) -> np.ndarray:
+        if self.carry == 0.0 or last is None:
             return self.P0
-        return self.P0 + self.carry * (self._last - self.P0)
+        return self.P0 + self.carry * (last - self.P0)
 
     @property
     def ref(self) -> ReferenceWingbeat:
@@ -892,7 +904,9 @@ class WingbeatController:
         snap = snap or cycle.snapshot(fl)
         base = self.reference_params()
         if self.predictor is None:
-            e0 = cycle.fly_cycle(fl, snap, base, self.ref)
+            e0 = self.lookahead.take(snap, base) if self.lookahead is not None else None
+            if e0 is None:
+                e0 = cycle.fly_cycle(fl, snap, base, self.ref)
         else:
             e0 = self.predictor.reference(self, snap)
         S_t = np.asarray(target(e0), float)
@@ -941,6 +955,10 @@ class WingbeatController:
             err = refine_error(e.S, S_t, self.regressor.w)
             if best is None or err < best[0]:
                 best = (err, P, projected, e)
+                if self.lookahead is not None and self.predictor is None:
+                    # the next wingbeat's reference if this one is flown, on the other core
+                    # while the next correction is simulated here
+                    self.lookahead.submit(e.snapshot, self._reference_after(P), self.ref)
             if i == n:
                 break
             request = request + np.where(REFINE_COMPONENTS, S_t - e.S, 0.0)
@@ -1129,14 +1147,55 @@ DEFAULT_REFINE = {"rigid": 2, "modal": 0}
 DEFAULT_REFINE_GOAL = {"rigid": "full", "modal": "full"}
 
 
+#: :func:`load_controller`'s ``lookahead`` (and the CLI's ``--lookahead``).
+LOOKAHEAD_MODES = ("auto", "on", "off")
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on."""
+    import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        return os.cpu_count() or 1
+
+
+def make_lookahead(flight: DoveFlight, mode: str, refine: int, predict: str
+                   ) -> ReferenceLookahead | None:
+    """The :class:`~flapsim.bird.lookahead.ReferenceLookahead` ``mode`` asks for
+    (:func:`load_controller`'s ``lookahead``), or None."""
+    if mode not in LOOKAHEAD_MODES:
+        raise InputError(f"--lookahead must be one of {', '.join(LOOKAHEAD_MODES)}, got {mode!r}")
+    if mode == "off":
+        return None
+    why = None
+    if not refine:
+        why = "it runs beside the simulated corrections: use --refine 1 or more"
+    elif predict != "simulate":
+        why = f"it simulates S0 ahead: use --predict simulate, not {predict}"
+    elif flight.aero.flow.has_python:
+        why = "a Python flow field runs under the GIL every step: nothing to run beside it"
+    elif flight.modal is not None and not flight.modal.engine:
+        why = ("a copy of a modal dove needs its modes integrated by the engine "
+               "(ModalParams(integration='engine'), the default)")
+    elif mode == "auto" and usable_cores() < 2:
+        why = "one CPU core"
+    if why is None:
+        return ReferenceLookahead(flight)
+    if mode == "on":
+        raise InputError(f"--lookahead on: {why}")
+    return None
+
+
 def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
                     weights: tuple[float, float, float] = PAPER_WEIGHTS,
                     predict: str = "simulate", predict_every: int = 4,
                     mirror: bool = True, state_weight: float = 0.0,
                     clip_request: float = DEFAULT_CLIP_REQUEST,
                     k_dense: int | None = None, carry: float | None = None,
-                    refine: int | None = None, refine_goal: str | None = None
-                    ) -> WingbeatController:
+                    refine: int | None = None, refine_goal: str | None = None,
+                    lookahead: str = "off") -> WingbeatController:
     """A controller over a database (default: the bundled one of ``flight``'s dove, rigid or
     modal feathers) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error.
@@ -1168,7 +1227,13 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
     ``coarse`` flies it every wingbeat at :data:`COARSE_RATE_HZ` (:class:`CoarsePredictor`);
     ``regression`` predicts it from the database's (S, S0) pairs and simulates P0 only
-    every ``predict_every``-th wingbeat (:class:`S0Predictor`)."""
+    every ``predict_every``-th wingbeat (:class:`S0Predictor`).
+
+    ``lookahead`` (:data:`LOOKAHEAD_MODES`): ``on`` simulates the next wingbeat's reference
+    in a second thread while the corrections run (:attr:`WingbeatController.lookahead`: the
+    same flight, less wall time on two free cores), and is a one-line error where it cannot
+    (no corrections, S0 not simulated, a Python flow field); ``auto`` turns it on where it
+    can and two CPU cores are free to this process; ``off`` (default) never."""
     if predict not in PREDICT_MODES:
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
     if carry is None:
@@ -1222,6 +1287,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
         refine_goal = "full"  # no clip, nothing to clip the goal to: the same thing
     # it checks refine and refine_goal
     ctl = WingbeatController(flight, reg, P0, carry=carry, refine=refine, refine_goal=refine_goal)
+    ctl.lookahead = make_lookahead(flight, lookahead, refine, predict)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
     elif predict == "coarse":

@@ -198,8 +198,12 @@ class DoveFlight:
                                   fan_ratio(self.dove.params, k)))
         self._rollout_data = None
         self._twins: list[DoveFlight] = []
+        self._on_close: list = []
 
     def close(self) -> None:
+        for fn in self._on_close:
+            fn()  # helpers stepping a copy of this flight stop first (the look-ahead)
+        self._on_close.clear()
         self.registration.remove()
         if self._modal_registration is not None:
             self._modal_registration.remove()
@@ -207,21 +211,24 @@ class DoveFlight:
             tw.close()
         self._twins.clear()
 
-    def twin(self, rate_hz: float) -> DoveFlight:
-        """This flight's dove stepped at ``rate_hz`` on its own ``MjData``: the same forces,
-        flows and plucked feathers (shared, not copied), so any snapshot of this flight
-        restores into it. The learned controller's ``predict="coarse"`` flies the reference
-        wingbeat there. Closed with this flight."""
-        rate_hz = float(rate_hz)
-        if not np.isfinite(rate_hz) or not 100.0 <= rate_hz <= 1.0e5:
-            raise InputError(f"a step rate must be 100-100000 Hz, got {rate_hz}")
+    def twin(self, rate_hz: float | None) -> DoveFlight:
+        """This flight's dove stepped at ``rate_hz`` (None: this flight's own step, to the
+        bit) on its own ``MjData``: the same forces, flows and plucked feathers (shared, not
+        copied), so any snapshot of this flight restores into it. The learned controller's
+        ``predict="coarse"`` flies the reference wingbeat there, and its look-ahead
+        (:mod:`flapsim.bird.lookahead`) the next one. Closed with this flight."""
+        if rate_hz is not None:
+            rate_hz = float(rate_hz)
+            if not np.isfinite(rate_hz) or not 100.0 <= rate_hz <= 1.0e5:
+                raise InputError(f"a step rate must be 100-100000 Hz, got {rate_hz}")
         if self.modal is not None and not self.modal.engine:
             # the mode joints' gains (their unresolved modes' k dt damping) are compiled in
             raise InputError("a coarser-stepped copy of a modal dove needs its modes integrated "
                              "by the engine (ModalParams(integration='engine'), the default)")
         tw = copy.copy(self)
         tw.model = copy.copy(self.model)  # mj_copyModel: the option struct is its own
-        tw.model.opt.timestep = 1.0 / rate_hz
+        if rate_hz is not None:
+            tw.model.opt.timestep = 1.0 / rate_hz
         tw.data = mujoco.MjData(tw.model)
         tw.registration = self.aero.register(tw.data, model=tw.model)
         tw._modal_registration = None
@@ -230,7 +237,7 @@ class DoveFlight:
             # is built for the copy's timestep; geometry, flow and plucked feathers are the same
             tw.modal = self.modal.for_model(tw.model)
             tw._modal_registration = tw.modal.register(tw.data)
-        tw._rollout_data, tw._twins = None, []
+        tw._rollout_data, tw._twins, tw._on_close = None, [], []
         self._twins.append(tw)
         return tw
 

@@ -246,6 +246,9 @@ class TaskResult:
     """The controller's simulated corrections per wingbeat."""
     refine_goal: str | None = None
     """What those corrections aim at (``reachable`` or ``full``)."""
+    lookahead: tuple[int, int] | None = None
+    """With the controller's look-ahead (:mod:`flapsim.bird.lookahead`): the wingbeats whose
+    reference it had simulated ahead, and those simulated on the spot; None without one."""
 
     @property
     def ok(self) -> bool:
@@ -311,10 +314,13 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
             mujoco.mj_forward(fl.model, fl.data)
         if hasattr(ctl, "reset"):
             ctl.reset()  # a new flight: nothing carried from an earlier one
+        la = getattr(ctl, "lookahead", None)
+        before = (0, 0) if la is None else (la.hits, la.misses)
         r = _fly(fl, ctl, target, task, record, progress)
         r.model_hash, r.k, r.database_samples = fl.dove.hash(), ctl.regressor.k, ctl.regressor.n
         r.refine = getattr(ctl, "refine", None)
         r.refine_goal = getattr(ctl, "refine_goal", None)
+        r.lookahead = None if la is None else (la.hits - before[0], la.misses - before[1])
         return r
     finally:
         if own:

@@ -214,7 +214,8 @@ def run(args: argparse.Namespace) -> dict:
                                  refine_goal=args.refine_goal,
                                  mirror=args.mirror,
                                  clip_request=args.clip_request, state_weight=args.state_weight,
-                                 predict=args.predict, bank_lead_s=args.bank_lead,
+                                 predict=args.predict, lookahead=args.lookahead,
+                                 bank_lead_s=args.bank_lead,
                                  speed=speed, aoa_per_g_deg=aoa, turn_load_factor=turn_g,
                                  climb_per_speed_deficit=speed_first,
                                  turn_speed_floor=floor, layers=args.layers,
@@ -225,6 +226,7 @@ def run(args: argparse.Namespace) -> dict:
             raise InputError("--table1 flies one start per database; drop --starts")
         return _table1(args, opts)
     runs = start_runs(_names(args), opts, args)
+    runs = lookahead_runs(runs, args.lookahead, args.workers, args.backend)
     if args.db and any(scenarios.get(n).family == "flight" for n, _ in runs):
         _check_db_model(args.db, args.feathers)
     for d in (plots, video):
@@ -343,6 +345,25 @@ def resume_hint(args: argparse.Namespace) -> str:
         return (f"; the finished runs are kept in {journal_path(args.json)}: run the same "
                 "command again to resume")
     return ""
+
+
+def lookahead_runs(runs: list[tuple[str, object]], mode: str, workers: int | None,
+                   backend: str = "local") -> list[tuple[str, object]]:
+    """``--lookahead`` for each run: ``auto`` becomes ``on`` only where the local runs leave
+    this machine a second core per worker (one scenario on two cores, say), else ``off``: the
+    suite's runs already fill the cores, and a third thread would slow them."""
+    import dataclasses
+
+    from flapsim.bird.controller import usable_cores
+
+    if mode == "auto":
+        n = workers or max(1, min(len(runs), usable_cores()))
+        n = min(n, len(runs)) if runs else 1
+        mode = "on" if backend == "local" and usable_cores() >= 2 * n else "off"
+        # "on" is an error where a run cannot look ahead (--refine 0, say): auto stays quiet
+        mode = "auto" if mode == "on" else "off"
+    return [(name, dataclasses.replace(o, lookahead=mode) if hasattr(o, "lookahead") else o)
+            for name, o in runs]
 
 
 def execute(runs: list[tuple[str, object]], workers: int | None, backend: str = "local",
@@ -571,6 +592,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
         _paper_protocol(o)
         runs.append((name, o))
         labels.append({"samples": base, "k_percent": kp, "k": o.k})
+    runs = lookahead_runs(runs, args.lookahead, args.workers, args.backend)
     journal = open_journal(args, runs)
     results = execute(runs, args.workers, args.backend, args.address, journal)
     print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}; "

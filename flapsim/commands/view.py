@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> dict:
     r = view_flight(args.seconds, args.db, args.method, args.k, path, feathers=args.feathers,
                     mirror=args.mirror, clip_request=args.clip_request, state_weight=args.state_weight,
                     predict=args.predict, k_dense=args.k_dense, carry=args.carry,
-                    refine=args.refine, refine_goal=args.refine_goal)
+                    refine=args.refine, refine_goal=args.refine_goal, lookahead=args.lookahead)
     print(f"dove viewer: {r['simulated_s']:.1f} s flown in {r['wall_s']:.1f} s ({r['status']}); "
           f"turned {r['heading_change_deg']:+.0f} deg, climbed {r['altitude_change_m']:+.1f} m, "
           f"{r['distance_m']:.0f} m flown; {len(r['events'])} key commands, {r['pushes']} pushes, "

@@ -84,6 +84,10 @@ class EvalOptions:
     only, the paper's)."""
     predict: str = "simulate"
     """Flight: how the controller finds S0 (:func:`flapsim.bird.controller.load_controller`)."""
+    lookahead: str = "off"
+    """Flight: the next wingbeat's reference simulated in a second thread (``auto``, ``on``,
+    ``off``: :func:`flapsim.bird.controller.load_controller`); changes the wall time only, so
+    a journal's runs are resumed whatever it is."""
     bank_lead_s: float | None = None
     """Flight: the path target asks the bank this long ahead, s (None: the dove's default,
     :data:`flapsim.bird.tasks.DEFAULT_BANK_LEAD_S`; 0: at the wingbeat's end, the paper's)."""

@@ -45,6 +45,9 @@ def _summary(r) -> dict:
     if getattr(r, "refine", None) is not None:
         out["refine"] = r.refine  # the controller's simulated corrections per wingbeat
         out["refine_goal"] = getattr(r, "refine_goal", None)
+    if getattr(r, "lookahead", None) is not None:
+        # references simulated ahead on the second core, and on the spot (wall time only)
+        out["lookahead_hits"], out["lookahead_misses"] = r.lookahead
     return out
 
 
@@ -70,7 +73,7 @@ def _fly_task(task, opt: EvalOptions, record: bool):
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
                     clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict,
                     k_dense=opt.k_dense, carry=opt.carry, refine=opt.refine,
-                    refine_goal=opt.refine_goal)
+                    refine_goal=opt.refine_goal, lookahead=opt.lookahead)
 
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:

@@ -41,6 +41,10 @@ def _file_digest(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
+#: Options that change how fast a run goes, never what it gives: not in the fingerprint.
+WALL_TIME_ONLY = ("lookahead",)
+
+
 def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
     """sha256 over what decides the runs' results: each run's scenario name and options
     (``to_dict()``), ``version`` (the software's: :func:`flapsim.environment.tag`), and the
@@ -61,6 +65,8 @@ def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
     items = []
     for name, opts in runs:
         d = opts.to_dict() if hasattr(opts, "to_dict") else dict(opts)
+        for k in WALL_TIME_ONLY:
+            d.pop(k, None)
         db = d.get("db")
         if db is None and get(name).family == "flight":
             from flapsim.bird.controller import bundled_database_path

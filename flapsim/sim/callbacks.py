@@ -284,6 +284,16 @@ class PassiveDispatcher:
                     f"t={data.time:.4f} s"
                 )
 
+    @contextmanager
+    def frozen(self) -> Iterator[None]:
+        """Within the block no registration changes the table the compiled callback reads:
+        ``register`` and ``remove`` from other threads wait. For a thread that steps a
+        simulation while another may register or remove providers (the table is rewritten
+        whole on every change; a callback reading it half-written would find no forces, or
+        worse)."""
+        with self._lock:
+            yield
+
     # -- installation -------------------------------------------------------------
     @contextmanager
     def suspended(self) -> Iterator[None]:

@@ -1,0 +1,144 @@
+"""The next wingbeat's reference simulated on a second core (flapsim.bird.lookahead): the
+flight must be the same to the bit, a look-ahead taken only for exactly its own request, and
+the callback table never rewritten under a stepping thread."""
+
+import threading
+import time
+
+import mujoco
+import numpy as np
+import pytest
+
+from flapsim.bird import controller as C
+from flapsim.bird import cycle
+from flapsim.bird.flight import DoveFlight
+from flapsim.bird.lookahead import ReferenceLookahead
+from flapsim.bird.model import Dove
+from flapsim.bird.paths import inclined_circle
+from flapsim.bird.tasks import PushSpec, Task, fly_task
+from flapsim.errors import InputError
+from flapsim.fluid.flow import Gust, PythonField
+from flapsim.sim.callbacks import DISPATCHER
+
+
+def test_the_lookahead_flies_the_same_flight_to_the_bit_in_a_gust_and_a_push():
+    # a turn (the corrections at work), a side gust (the flow shared with the copy, read at
+    # the copy's own time) and a push (the pushed wingbeat's end is no candidate's)
+    task = Task(inclined_circle(6.0, 0.0, 0.5), flow=(Gust((0.0, 1.0, 0.0), 2.0, 0.3, 0.6),),
+                pushes=(PushSpec(0.55, 4.0, "left"),), max_wingbeats=14)
+    off = fly_task(task, lookahead="off")
+    on = fly_task(task, lookahead="on")
+    assert off.lookahead is None
+    assert len(on.positions) == len(off.positions) == 15
+    # identical, not close: the copy steps the same model at the same step from the same state
+    np.testing.assert_array_equal(on.positions, off.positions)
+    np.testing.assert_array_equal(on.quats, off.quats)
+    hits, misses = on.lookahead
+    # every wingbeat's reference is either taken or simulated on the spot
+    assert hits + misses == 14
+    # on the spot at least: the first wingbeat (nothing ahead) and the one after the push
+    assert misses >= 2
+    # and otherwise ahead: with two corrections a candidate is best when it ends, each time
+    assert hits >= 10
+
+
+@pytest.fixture()
+def flight():
+    fl = DoveFlight(Dove.load())
+    yield fl
+    fl.close()
+
+
+def _start(fl):
+    ctl = C.load_controller(fl)
+    C.start_cruise(fl, ctl.P0)
+    return ctl, cycle.snapshot(fl)
+
+
+def test_a_lookahead_is_taken_only_for_exactly_its_own_request(flight):
+    ctl, snap = _start(flight)
+    la = ReferenceLookahead(flight)
+    P = ctl.P0.copy()
+    la.submit(snap, P, flight.ref)
+    end = la.take(snap, P)
+    own = cycle.fly_cycle(flight, snap, P, flight.ref)
+    np.testing.assert_array_equal(end.snapshot.physics, own.snapshot.physics)
+    np.testing.assert_array_equal(end.S, own.S)
+    assert (la.hits, la.misses) == (1, 0)
+    # one parameter one ulp off: not the request simulated
+    Q = P.copy()
+    Q[3] = np.nextafter(Q[3], np.inf)
+    la.submit(snap, P, flight.ref)
+    assert la.take(snap, Q) is None
+    # nothing ahead at all
+    assert la.take(snap, P) is None
+    assert (la.hits, la.misses) == (1, 2)
+
+
+def test_a_lookahead_is_not_taken_once_the_flow_has_changed(flight):
+    # the viewer's gust key re-packs the flow in place between wingbeats: the copy shares it
+    ctl, snap = _start(flight)
+    la = ReferenceLookahead(flight)
+    la.submit(snap, ctl.P0, flight.ref)
+    la._pending[0][1].result()  # simulated in the old air
+    flight.flow.set_uniform((0.0, 1.0, 0.0))
+    assert la.take(snap, ctl.P0) is None
+    assert la.misses == 1
+
+
+def test_the_lookahead_setting_is_an_error_where_it_cannot_run(flight, monkeypatch):
+    with pytest.raises(InputError, match="--refine 1 or more"):
+        C.make_lookahead(flight, "on", 0, "simulate")
+    with pytest.raises(InputError, match="--predict simulate"):
+        C.make_lookahead(flight, "on", 2, "coarse")
+    with pytest.raises(InputError, match="--lookahead must be one of"):
+        C.make_lookahead(flight, "yes", 2, "simulate")
+    assert C.make_lookahead(flight, "off", 2, "simulate") is None
+    # auto: quietly off where it cannot run, or on a single core
+    assert C.make_lookahead(flight, "auto", 0, "simulate") is None
+    monkeypatch.setattr(C, "usable_cores", lambda: 1)
+    assert C.make_lookahead(flight, "auto", 2, "simulate") is None
+    monkeypatch.setattr(C, "usable_cores", lambda: 2)
+    assert isinstance(C.make_lookahead(flight, "auto", 2, "simulate"), ReferenceLookahead)
+    assert C.load_controller(flight, lookahead="on").lookahead is not None
+
+
+def test_a_python_flow_field_refuses_the_lookahead():
+    fl = DoveFlight(Dove.load(), flow=(PythonField(lambda p, t: np.zeros_like(p)),))
+    try:
+        with pytest.raises(InputError, match="Python flow field"):
+            C.make_lookahead(fl, "on", 2, "simulate")
+        assert C.make_lookahead(fl, "auto", 2, "simulate") is None
+    finally:
+        fl.close()
+
+
+def test_registrations_wait_while_a_thread_steps_under_the_frozen_table():
+    m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><body><freejoint/><geom size='.1'/>"
+                                       "</body></worldbody></mujoco>")
+    d = mujoco.MjData(m)
+    done = threading.Event()
+
+    def register():
+        DISPATCHER.register(m, d, lambda m_, d_: None, "probe").remove()
+        done.set()
+
+    with DISPATCHER.frozen():
+        t = threading.Thread(target=register)
+        t.start()
+        time.sleep(0.3)
+        # the other thread is held at the table's lock, not finished
+        assert not done.is_set()
+    t.join(10.0)
+    assert done.is_set()
+
+
+def test_closing_the_flight_waits_for_a_running_lookahead():
+    fl = DoveFlight(Dove.load())
+    ctl, snap = _start(fl)
+    la = ReferenceLookahead(fl)
+    la.submit(snap, ctl.P0, fl.ref)
+    fut = la._pending[0][1]
+    fl.close()  # the look-ahead's close runs first: its wingbeat ends before the forces go
+    assert fut.done()
+    assert la._pool is None
