@@ -9,7 +9,7 @@ without the forward speed (which no wingbeat reaches in a tight turn), and the r
 
     PYTHONPATH=. python scripts/dove_answer_study.py [--db seed1.db,seed3.db,...] [--json out.json]
 
-Session 21 found the draws alike in every component but the roll (see the README, "Other
+Session 21 found the draws alike in every component but the roll (see docs/flight_log.md, "Other
 draws, and twice the samples"). About a minute a database on one core.
 """
 

@@ -17,7 +17,7 @@ Regression (:class:`Regressor`):
   the neighbours did. Its default k is 2 % of the database, the largest of the paper's
   Table I sweep (:data:`DEFAULT_K_SHARE`): a fit of 9 coefficients per parameter needs more
   neighbours than an average, and with 0.5 % the controller depended on the database's
-  random draw (README, "How much the database's random draw matters").
+  random draw (docs/flight_log.md, "How much the database's random draw matters").
 * requests are first clipped, per dimension, to the [2 %, 98 %] quantiles of the
   database's dS (``clip_request``, :data:`DEFAULT_CLIP_REQUEST`): the local fit is only
   trusted where its samples are.
@@ -1125,12 +1125,12 @@ def database_table(db_path=None, feathers: str = "rigid") -> str:
     return str(cfg.get("table") or FlightConfig.table)
 
 
-#: The learned controller's default :attr:`WingbeatController.carry`, per dove (README,
+#: The learned controller's default :attr:`WingbeatController.carry`, per dove (docs/flight_log.md,
 #: "Carrying the last wingbeat"): measured over five databases each; with modal feathers
 #: 0.4 follows the figure of eight closer but survives fewer pushes, so they keep 0.
 DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
 
-#: Simulated corrections per wingbeat (:attr:`WingbeatController.refine`) by dove (README,
+#: Simulated corrections per wingbeat (:attr:`WingbeatController.refine`) by dove (docs/flight_log.md,
 #: "Wingbeats checked by simulation"; ``scripts/dove_refine_study.py``): 2 for rigid feathers,
 #: measured over five databases at 7 m/s (level circles of 3-8 m both ways followed 31 of 50
 #: times against 8; 6 and 8 N pushes from four sides survived 40 of 40 against 36; the suite
@@ -1141,7 +1141,7 @@ DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
 DEFAULT_REFINE = {"rigid": 2, "modal": 0}
 
 #: :attr:`WingbeatController.refine_goal` by dove. ``reachable`` was measured on the rigid dove
-#: and not made its default (README, "Corrections aimed at what a wingbeat can reach": 17 of
+#: and not made its default (docs/flight_log.md, "Corrections aimed at what a wingbeat can reach": 17 of
 #: the 22 scenarios as ``full``, but 8 N rather than 10 N pushes from all six directions, and
 #: 76 of 100 user-path starts against 83).
 DEFAULT_REFINE_GOAL = {"rigid": "full", "modal": "full"}
@@ -1207,7 +1207,7 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     ``k_dense`` > 0 (LWLR): neighbours where the request lies among densely packed samples,
     growing to ``k`` where they are sparse (:class:`Regressor`); 0: always ``k``, the paper's
     fixed neighbourhood; None (default): :data:`DEFAULT_K_DENSE_SHARE` of the samples searched
-    for LWLR (README, "A neighbourhood that follows the samples' density"), 0 for k-NN.
+    for LWLR (docs/flight_log.md, "A neighbourhood that follows the samples' density"), 0 for k-NN.
 
     ``state_weight`` > 0: the neighbours are chosen by dS and by the wingbeat's start state
     (the samples' S field; :class:`Regressor`'s ``context_weight``); 0 (default): by dS only,

@@ -29,7 +29,7 @@ from flapsim.bird.path import FlightPath, PathTarget, path_metrics, start_on_pat
 from flapsim.errors import InputError, SimulationError
 
 #: The path target's default extra angle of attack per g of a turn's load factor, deg, per
-#: dove (:attr:`~flapsim.bird.path.PathTarget.aoa_per_g_deg`; README, "Carrying the last
+#: dove (:attr:`~flapsim.bird.path.PathTarget.aoa_per_g_deg`; docs/flight_log.md, "Carrying the last
 #: wingbeat" and "More angle of attack in turns, measured again"): 30 for the rigid dove from
 #: session 12 (its carry, five databases, no corrections), 40 since session 20, measured with
 #: the corrections and the 0.2 s bank lead over starts under 1 mm/s apart (the ten user paths
@@ -39,14 +39,14 @@ from flapsim.errors import InputError, SimulationError
 DEFAULT_AOA_PER_G_DEG = {"rigid": 40.0, "modal": 0.0}
 
 #: How far ahead the path target asks the bank, s, per dove
-#: (:attr:`~flapsim.bird.path.PathTarget.bank_lead_s`; README, "How firm a verdict is"):
+#: (:attr:`~flapsim.bird.path.PathTarget.bank_lead_s`; docs/flight_log.md, "How firm a verdict is"):
 #: measured for the rigid dove over starts under 1 mm/s apart (the ten user paths and the
 #: level and 15 deg climbing circles, 10 starts each); modal feathers keep the 0.3 s they
 #: were measured with.
 DEFAULT_BANK_LEAD_S = {"rigid": 0.2, "modal": 0.3}
 
 #: The path target's default climb given up per m/s of missing airspeed, rad s/m, per dove
-#: (:attr:`~flapsim.bird.path.PathTarget.climb_per_speed_deficit`; README, "Speed first"):
+#: (:attr:`~flapsim.bird.path.PathTarget.climb_per_speed_deficit`; docs/flight_log.md, "Speed first"):
 #: 0 for both, measured over the five rigid databases (0.1 and 0.05 complete the 7 deg climb
 #: and one scenario more on the bundled database, but over the five 14.2 and 14.8 of 22
 #: against 14.8, and seed 4 loses the figure of eight with either).
@@ -56,7 +56,7 @@ DEFAULT_CLIMB_PER_SPEED_DEFICIT = {"rigid": 0.0, "modal": 0.0}
 #: flight time a task allows beyond its path's own.
 REFERENCE_PERIOD_S = 0.1075
 
-#: The most lift the rigid dove's wing holds at constant speed at 7-8 m/s, in g (README,
+#: The most lift the rigid dove's wing holds at constant speed at 7-8 m/s, in g (docs/flight_log.md,
 #: "Where the tight turns and steep climbs fail": ``scripts/dove_turn_limit.py``,
 #: :mod:`flapsim.bird.limits`). The time a task allows counts a turn tighter than that allows
 #: at the speed asked at the speed where it does (a 3.6 m circle: 5.0 m/s, not 7): a bird

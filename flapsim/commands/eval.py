@@ -97,11 +97,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speed-first", type=float, default=None, metavar="K",
                    help="flight: the climb asked drops K rad per m/s of airspeed below the speed "
                         "asked (default 0: independent speed and height loops, the paper's; "
-                        "see the README, \"Speed first\")")
+                        "see docs/flight_log.md, \"Speed first\")")
     p.add_argument("--turn-g", type=float, default=None, metavar="N",
                    help="flight: slow down ahead of turns that would need more than N g at the "
                         "speed asked, to the speed where they need N (0: never, the paper's; "
-                        "default 0; see the README, \"Slowing for tight turns\")")
+                        "default 0; see docs/flight_log.md, \"Slowing for tight turns\")")
     p.add_argument("--turn-speed-floor", type=float, default=None, metavar="M_S",
                    help="flight: with --turn-g, the lowest speed asked for a turn (default 6.5 m/s)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
