@@ -1,0 +1,118 @@
+"""Where the dove's muscle power goes in free flight (:func:`power_budget`): a wingbeat
+repeated from the standard cruise start (by default the reference wingbeat P0 with the tail
+bias: the base controller), over whole wingbeats. ``scripts/dove_power_budget.py`` prints it.
+
+In still air a polygon's lift is perpendicular to its relative flow, so it does no work on
+the polygon: the air takes energy out of the bird only through drag and skin friction,
+D . V_rel + F_f . V_rel with V_rel = -(the centroid's velocity over the step). What the
+servos put in (their generalized force times the step's mean velocity) goes there, into the
+joints' and tendons' dampers, and into the bird's mechanical energy (kinetic, gravitational
+and springs: MuJoCo's ``mjENBL_ENERGY``). :func:`power_budget` averages each term over the
+wingbeats after ``skip``, with what the balance leaves (``other_W``: the feathers'
+twist-hinge torques and the integrator), the work rate of every generalized force against
+the energy's own rate (the work-energy theorem, which closes to ~1 % of the muscles' power
+when nothing acts but these forces), and the feathers' drag dissipation split by stroke
+(the left shoulder's flap velocity: down or up) and by angle of attack.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from flapsim.bird.flight import BODY_TABLE, DoveFlight, FlightConfig
+from flapsim.bird.model import Dove
+from flapsim.bird.wingbeat import control_table, p0, with_tail_bias
+from flapsim.errors import InputError
+
+AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
+
+
+def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
+                 tail_bias_deg: float | None = None) -> dict:
+    """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
+    of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
+    tail bend added to P0), with the feathers' drag dissipation by stroke and by angle of
+    attack (see the module)."""
+    if not 0 <= skip < wingbeats:
+        raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
+    cfg = FlightConfig() if table is None else FlightConfig(table=table)
+    bias = cfg.tail_bias_deg if tail_bias_deg is None else tail_bias_deg
+    p = with_tail_bias(p0(), bias)
+    dove = Dove.load()
+    fl = DoveFlight(dove, table=cfg.table, use_rollout=False)
+    m, d = fl.model, fl.data
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    flap = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "l_shoulder_flap")]
+    feather = fl.polygons.table != BODY_TABLE
+    steps = []
+    try:
+        fl.reset(cfg, p)
+        for wb in range(wingbeats):
+            ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
+            for k in range(len(ctrl)):
+                # the forces that act over the step: the step's control at the state it starts
+                # from (a servo's force read after the step, with the previous control, is off
+                # by kp x one step of the target's motion: -7 W instead of +14 W here)
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_forward(m, d)
+                rep = fl.aero.evaluate(d)
+                s = {"wb": wb, "points": rep.points.copy(), "drag": rep.drag.copy(),
+                     "lift": rep.lift.copy(), "friction": rep.friction.copy(),
+                     "aoa": rep.aoa.copy(), "energy": float(d.energy.sum()),
+                     "down": bool(d.qvel[flap] < 0.0), "v0": d.qvel.copy(),
+                     "f_act": d.qfrc_actuator.copy(), "f_damp": d.qfrc_damper.copy(),
+                     "f_all": (d.qfrc_actuator + d.qfrc_passive + d.qfrc_constraint).copy()}
+                mujoco.mj_step(m, d)
+                s["v1"] = d.qvel.copy()
+                steps.append(s)
+    finally:
+        fl.close()
+    rows = []
+    for k in range(len(steps) - 1):
+        s = steps[k]
+        if s["wb"] < skip:
+            continue
+        v = 0.5 * (s["v0"] + s["v1"])  # the step's mean velocity: its work closes the balance
+        # still air: the relative flow is minus the centroid's velocity over the step
+        vrel = -(steps[k + 1]["points"] - s["points"]) / m.opt.timestep
+        rows.append((s["wb"], float(s["f_act"] @ v), float(-(s["f_damp"] @ v)),
+                     float(s["f_all"] @ v), s["down"],
+                     np.einsum("ij,ij->i", s["drag"], vrel),
+                     np.einsum("ij,ij->i", s["lift"], vrel),
+                     np.einsum("ij,ij->i", s["friction"], vrel), s["aoa"],
+                     steps[k + 1]["energy"] - s["energy"]))
+    return _summarise(rows, feather, m.opt.timestep, dove.mass)
+
+
+def _summarise(rows: list, feather: np.ndarray, dt: float, mass: float) -> dict:
+    n = len(rows)
+    col = lambda i: np.array([r[i] for r in rows])  # noqa: E731
+    muscle, damp, total, down = col(1), col(2), col(3), col(4)
+    drag, lift, fric, aoa, de = col(5), col(6), col(7), np.degrees(col(8)), col(9)
+    T = n * dt
+    out = {
+        "seconds": T, "mass_kg": mass,
+        "muscle_W": float(muscle.mean()),
+        "dampers_W": float(damp.mean()),
+        "drag_feathers_W": float(drag[:, feather].sum(1).mean()),
+        "drag_body_W": float(drag[:, ~feather].sum(1).mean()),
+        "friction_W": float(fric.sum(1).mean()),
+        "lift_work_W": float(lift.sum(1).mean()),
+        "mechanical_energy_rate_W": float(de.sum() / T),
+        "work_rate_all_forces_W": float(total.mean()),
+    }
+    # what the air and the dampers do not account for: the twist hinges' own torques
+    # (stops, the plates' inertia), the springs' and gravity's work being in the energy
+    out["other_W"] = (out["muscle_W"] - out["dampers_W"] - out["drag_feathers_W"]
+                      - out["drag_body_W"] - out["friction_W"] - out["mechanical_energy_rate_W"])
+    fd = drag[:, feather]
+    out["drag_feathers_downstroke_W"] = float(fd[down].sum() / n)
+    out["drag_feathers_upstroke_W"] = float(fd[~down].sum() / n)
+    fa = aoa[:, feather]
+    bins = {}
+    for lo, hi in zip(AOA_BINS_DEG[:-1], AOA_BINS_DEG[1:], strict=True):
+        sel = (fa >= lo) & (fa < hi)
+        bins[f"{lo:g}-{hi:g}"] = float(np.where(sel, fd, 0.0).sum() / n)
+    out["drag_feathers_by_aoa_W"] = bins
+    return out

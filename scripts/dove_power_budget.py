@@ -1,0 +1,37 @@
+"""Where the dove's muscle power goes in free flight: :func:`flapsim.bird.power.power_budget`
+printed (the reference wingbeat repeated from the cruise start; any coefficient table).
+
+    PYTHONPATH=. python scripts/dove_power_budget.py [--wingbeats 6] [--skip 2]
+        [--table NAME] [--tail-bias-deg D] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from flapsim.bird.power import power_budget
+from flapsim.io import write_json
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--wingbeats", type=int, default=6)
+    ap.add_argument("--skip", type=int, default=2, help="wingbeats flown before averaging")
+    ap.add_argument("--table", default=None)
+    ap.add_argument("--tail-bias-deg", type=float, default=None)
+    ap.add_argument("--json")
+    a = ap.parse_args()
+    r = power_budget(a.wingbeats, a.skip, a.table, a.tail_bias_deg)
+    print(f"over {r['seconds']:.3f} s of free flight (mass {r['mass_kg']:.3f} kg):")
+    for key in ("muscle_W", "dampers_W", "drag_feathers_W", "drag_feathers_downstroke_W",
+                "drag_feathers_upstroke_W", "drag_body_W", "friction_W", "lift_work_W",
+                "mechanical_energy_rate_W", "work_rate_all_forces_W", "other_W"):
+        print(f"  {key:32s} {r[key]:8.3f}")
+    print("  feathers' drag dissipation by angle of attack (deg): "
+          + ", ".join(f"{k} {v:.2f} W" for k, v in r["drag_feathers_by_aoa_W"].items()))
+    if a.json:
+        write_json(a.json, r)
+
+
+if __name__ == "__main__":
+    main()
