@@ -581,28 +581,31 @@ def test_the_dove_holds_its_airspeed_in_a_crosswind_and_rides_out_a_side_gust():
 
 
 def test_speed_first_finishes_a_7_deg_climb_sooner_and_both_make_way():
-    """80 m at 7 deg (the bundled database): with independent speed and height loops the dove
-    slows under growing climb requests and is not at the end in 1.5 x its flight time at
-    7 m/s (1.5 x 80 / 7 + 5 x 0.1075 = 17.7 s; the clock until session 16, which called it
-    lost); giving up 0.05 rad of climb per m/s of missing airspeed it gets there within that
-    time. Both stay in the 3 m tube and reach the end within the 27.2 s the clock now allows
-    (80 m at MIN_WAY_SPEED, 3 m/s, + 5 x 0.1075 s), so both are completed.
+    """80 m at 7 deg (the bundled database): giving up 0.05 rad of climb per m/s of missing
+    airspeed, the dove is at the end within 1.5 x its flight time at 7 m/s (1.5 x 80 / 7 + 5 x
+    0.1075 = 17.7 s, the clock until session 16) and inside the 3 m tube; with independent
+    speed and height loops it slows under the growing climb requests and makes way more slowly,
+    though still faster than the 3 m/s the clock now allows for.
     Measured with the regression's wingbeats flown as answered (``refine=0``, as when speed
-    first was measured)."""
+    first was measured). Over four starts under 1 mm/s apart on an Intel Xeon (session 23):
+    speed first 15.7-16.4 s, 1.6-2.6 m off at most, 4.89-5.10 m/s of way; independent loops
+    4.43-4.69 m/s of way. Their verdict is a coin toss at the tube's edge (3.0-3.2 m off on
+    three of the four there; within it on an AMD EPYC, sessions 16-22), so it is not asserted:
+    the way made is."""
     from flapsim.bird.path import FlightPath
     from flapsim.bird.paths import START_HEIGHT
-    from flapsim.bird.tasks import Task, fly_task
+    from flapsim.bird.tasks import MIN_WAY_SPEED, Task, fly_task
 
     a = np.radians(7.0)
     path = FlightPath(np.array([[0.0, 0.0, START_HEIGHT],
                                 [80 * np.cos(a), 0.0, START_HEIGHT + 80 * np.sin(a)]]))
     old_clock = 1.5 * 80.0 / 7.0 + 5 * 0.1075
-    r = fly_task(Task(path, climb_per_speed_deficit=0.05), refine=0)
-    assert r.status == "completed", r.reason
-    assert r.metrics["simulated_s"] < old_clock
-    r = fly_task(Task(path, climb_per_speed_deficit=0.0), refine=0)
-    assert r.status == "completed", r.reason
-    assert r.metrics["simulated_s"] > old_clock
+    first = fly_task(Task(path, climb_per_speed_deficit=0.05), refine=0)
+    assert first.status == "completed", first.reason
+    assert first.metrics["simulated_s"] < old_clock
+    loops = fly_task(Task(path, climb_per_speed_deficit=0.0), refine=0)
+    assert loops.metrics["progress_m"] == pytest.approx(80.0, abs=0.5)
+    assert MIN_WAY_SPEED < loops.metrics["way_speed_m_s"] < first.metrics["way_speed_m_s"]
 
 
 def test_the_held_out_user_paths_are_the_helices_and_turns_they_are_named_for():
