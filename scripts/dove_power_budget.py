@@ -2,7 +2,7 @@
 printed (the reference wingbeat repeated from the cruise start; any coefficient table).
 
     PYTHONPATH=. python scripts/dove_power_budget.py [--wingbeats 6] [--skip 2]
-        [--table NAME] [--tail-bias-deg D] [--json out.json]
+        [--table NAME] [--tail-bias-deg D] [--twist-bias-deg D] [--json out.json]
 """
 
 from __future__ import annotations
@@ -19,13 +19,16 @@ def main() -> None:
     ap.add_argument("--skip", type=int, default=2, help="wingbeats flown before averaging")
     ap.add_argument("--table", default=None)
     ap.add_argument("--tail-bias-deg", type=float, default=None)
+    ap.add_argument("--twist-bias-deg", type=float, default=0.0,
+                    help="both shoulder twists added to P0, deg (+ pronates)")
     ap.add_argument("--json")
     a = ap.parse_args()
-    r = power_budget(a.wingbeats, a.skip, a.table, a.tail_bias_deg)
+    r = power_budget(a.wingbeats, a.skip, a.table, a.tail_bias_deg, a.twist_bias_deg)
     print(f"over {r['seconds']:.3f} s of free flight (mass {r['mass_kg']:.3f} kg):")
     for key in ("muscle_W", "dampers_W", "drag_feathers_W", "drag_feathers_downstroke_W",
                 "drag_feathers_upstroke_W", "drag_body_W", "friction_W", "lift_work_W",
-                "mechanical_energy_rate_W", "work_rate_all_forces_W", "other_W"):
+                "mechanical_energy_rate_W", "work_rate_all_forces_W", "other_W",
+                "aero_up_per_weight", "mean_speed_m_s"):
         print(f"  {key:32s} {r[key]:8.3f}")
     print("  feathers' drag dissipation by angle of attack (deg): "
           + ", ".join(f"{k} {v:.2f} W" for k, v in r["drag_feathers_by_aoa_W"].items()))

@@ -22,23 +22,24 @@ import numpy as np
 
 from flapsim.bird.flight import BODY_TABLE, DoveFlight, FlightConfig
 from flapsim.bird.model import Dove
-from flapsim.bird.wingbeat import control_table, p0, with_tail_bias
+from flapsim.bird.wingbeat import control_table, p0, with_tail_bias, with_twist_bias
 from flapsim.errors import InputError
 
 AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
 
 
 def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
-                 tail_bias_deg: float | None = None) -> dict:
+                 tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0) -> dict:
     """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
     of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
-    tail bend added to P0), with the feathers' drag dissipation by stroke and by angle of
-    attack (see the module)."""
+    tail bend added to P0; ``twist_bias_deg``: both shoulder twists added, + pronates), with
+    the feathers' drag dissipation by stroke and by angle of attack, the vertical aerodynamic
+    force over the weight and the mean forward speed (see the module)."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
     cfg = FlightConfig() if table is None else FlightConfig(table=table)
     bias = cfg.tail_bias_deg if tail_bias_deg is None else tail_bias_deg
-    p = with_tail_bias(p0(), bias)
+    p = with_twist_bias(with_tail_bias(p0(), bias), twist_bias_deg)
     dove = Dove.load()
     fl = DoveFlight(dove, table=cfg.table, use_rollout=False)
     m, d = fl.model, fl.data
@@ -60,6 +61,8 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                 s = {"wb": wb, "points": rep.points.copy(), "drag": rep.drag.copy(),
                      "lift": rep.lift.copy(), "friction": rep.friction.copy(),
                      "aoa": rep.aoa.copy(), "energy": float(d.energy.sum()),
+                     "up": float((rep.drag + rep.lift + rep.friction)[:, 2].sum()),
+                     "speed": float(np.hypot(d.qvel[0], d.qvel[1])),
                      "down": bool(d.qvel[flap] < 0.0), "v0": d.qvel.copy(),
                      "f_act": d.qfrc_actuator.copy(), "f_damp": d.qfrc_damper.copy(),
                      "f_all": (d.qfrc_actuator + d.qfrc_passive + d.qfrc_constraint).copy()}
@@ -81,7 +84,7 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                      np.einsum("ij,ij->i", s["drag"], vrel),
                      np.einsum("ij,ij->i", s["lift"], vrel),
                      np.einsum("ij,ij->i", s["friction"], vrel), s["aoa"],
-                     steps[k + 1]["energy"] - s["energy"]))
+                     steps[k + 1]["energy"] - s["energy"], s["up"], s["speed"]))
     return _summarise(rows, feather, m.opt.timestep, dove.mass)
 
 
@@ -90,6 +93,7 @@ def _summarise(rows: list, feather: np.ndarray, dt: float, mass: float) -> dict:
     col = lambda i: np.array([r[i] for r in rows])  # noqa: E731
     muscle, damp, total, down = col(1), col(2), col(3), col(4)
     drag, lift, fric, aoa, de = col(5), col(6), col(7), np.degrees(col(8)), col(9)
+    up, speed = col(10), col(11)
     T = n * dt
     out = {
         "seconds": T, "mass_kg": mass,
@@ -101,6 +105,8 @@ def _summarise(rows: list, feather: np.ndarray, dt: float, mass: float) -> dict:
         "lift_work_W": float(lift.sum(1).mean()),
         "mechanical_energy_rate_W": float(de.sum() / T),
         "work_rate_all_forces_W": float(total.mean()),
+        "aero_up_per_weight": float(up.mean() / (mass * 9.81)),
+        "mean_speed_m_s": float(speed.mean()),
     }
     # what the air and the dampers do not account for: the twist hinges' own torques
     # (stops, the plates' inertia), the springs' and gravity's work being in the energy
