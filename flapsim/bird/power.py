@@ -29,17 +29,22 @@ AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
 
 
 def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
-                 tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0) -> dict:
+                 tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0,
+                 p: np.ndarray | None = None) -> dict:
     """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
     of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
     tail bend added to P0; ``twist_bias_deg``: both shoulder twists added, + pronates), with
     the feathers' drag dissipation by stroke and by angle of attack, the vertical aerodynamic
-    force over the weight and the mean forward speed (see the module)."""
+    force over the weight and the mean forward speed (see the module). ``p``: fly this
+    wingbeat instead (the biases are then not applied)."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
     cfg = FlightConfig() if table is None else FlightConfig(table=table)
     bias = cfg.tail_bias_deg if tail_bias_deg is None else tail_bias_deg
-    p = with_twist_bias(with_tail_bias(p0(), bias), twist_bias_deg)
+    if p is None:
+        p = with_twist_bias(with_tail_bias(p0(), bias), twist_bias_deg)
+    elif np.shape(p) != np.shape(p0()) or not np.all(np.isfinite(p)):
+        raise InputError(f"a wingbeat is {np.size(p0())} finite parameters, got shape {np.shape(p)}")
     dove = Dove.load()
     fl = DoveFlight(dove, table=cfg.table, use_rollout=False)
     m, d = fl.model, fl.data
