@@ -2,7 +2,8 @@
 printed (the reference wingbeat repeated from the cruise start; any coefficient table).
 
     PYTHONPATH=. python scripts/dove_power_budget.py [--wingbeats 6] [--skip 2]
-        [--table NAME] [--tail-bias-deg D] [--twist-bias-deg D] [--json out.json]
+        [--table NAME] [--tail-bias-deg D] [--twist-bias-deg D] [--speed M_S]
+        [--json out.json]
 """
 
 from __future__ import annotations
@@ -21,9 +22,11 @@ def main() -> None:
     ap.add_argument("--tail-bias-deg", type=float, default=None)
     ap.add_argument("--twist-bias-deg", type=float, default=0.0,
                     help="both shoulder twists added to P0, deg (+ pronates)")
+    ap.add_argument("--speed", type=float, default=None, help="start speed, m/s (default 7)")
     ap.add_argument("--json")
     a = ap.parse_args()
-    r = power_budget(a.wingbeats, a.skip, a.table, a.tail_bias_deg, a.twist_bias_deg)
+    r = power_budget(a.wingbeats, a.skip, a.table, a.tail_bias_deg, a.twist_bias_deg,
+                     speed=a.speed)
     print(f"over {r['seconds']:.3f} s of free flight (mass {r['mass_kg']:.3f} kg):")
     for key in ("muscle_W", "dampers_W", "drag_feathers_W", "drag_feathers_downstroke_W",
                 "drag_feathers_upstroke_W", "drag_body_W", "friction_W", "lift_work_W",

@@ -17,6 +17,8 @@ when nothing acts but these forces), and the feathers' drag dissipation split by
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import mujoco
 import numpy as np
 
@@ -30,16 +32,21 @@ AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
 
 def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                  tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0,
-                 p: np.ndarray | None = None) -> dict:
+                 p: np.ndarray | None = None, speed: float | None = None) -> dict:
     """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
     of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
     tail bend added to P0; ``twist_bias_deg``: both shoulder twists added, + pronates), with
     the feathers' drag dissipation by stroke and by angle of attack, the vertical aerodynamic
     force over the weight and the mean forward speed (see the module). ``p``: fly this
-    wingbeat instead (the biases are then not applied)."""
+    wingbeat instead (the biases are then not applied); ``speed``: the start's forward speed,
+    m/s (default the cruise start's 7)."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
-    cfg = FlightConfig() if table is None else FlightConfig(table=table)
+    cfg = FlightConfig()
+    cfg = replace(cfg, table=cfg.table if table is None else table,
+                  speed=cfg.speed if speed is None else float(speed))
+    if not 1.0 <= cfg.speed <= 30.0:
+        raise InputError(f"the start's speed must be 1-30 m/s, got {cfg.speed}")
     bias = cfg.tail_bias_deg if tail_bias_deg is None else tail_bias_deg
     if p is None:
         p = with_twist_bias(with_tail_bias(p0(), bias), twist_bias_deg)

@@ -49,6 +49,12 @@ def test_the_split_adds_up(budget):
     assert sum(budget["drag_feathers_by_aoa_W"].values()) == pytest.approx(total, rel=1e-9)
 
 
-def test_bad_window_is_one_line():
+def test_bad_input_is_one_line():
+    import numpy as np
+
     with pytest.raises(InputError, match="skip"):
         power_budget(wingbeats=2, skip=2)
+    with pytest.raises(InputError, match="speed"):
+        power_budget(wingbeats=2, skip=1, speed=0.0)
+    with pytest.raises(InputError, match="finite parameters"):
+        power_budget(wingbeats=2, skip=1, p=np.zeros(3))
