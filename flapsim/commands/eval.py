@@ -488,10 +488,12 @@ def _list() -> dict:
     from flapsim import scenarios
 
     rows = []
-    for name in scenarios.names():
+    names = scenarios.names()
+    width = max(len(n) for n in names)  # the columns line up whatever the longest name
+    for name in names:
         sc = scenarios.get(name)
         rows.append({"name": name, "family": sc.family, "summary": sc.summary, "in_all": sc.in_all})
-        print(f"{name:<24} {sc.family:<7} {sc.summary}")
+        print(f"{name:<{width}} {sc.family:<7} {sc.summary}")
     return {"scenarios": rows}
 
 
