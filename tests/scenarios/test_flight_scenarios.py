@@ -172,26 +172,38 @@ def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_eval_follows_a_users_3_m_circle_by_slowing_into_it(tmp_path):
-    # the issue's tightest user path: a level 3 m circle from its first point (no lead-in,
-    # entered at 7 m/s). At 7 m/s it needs sqrt(1 + (49 / (9.81 * 3))^2) = 1.94 g; at 6 m/s
-    # 1.58 g, past the 1.39 g (a 3.8 m turn) the wing sustains there (scripts/
-    # dove_turn_limit.py): a dove that follows it has flown it slower than 6 m/s on average
+    """The issue's tightest user path: a level 3 m circle from its first point (no lead-in,
+    entered at 7 m/s). At 7 m/s it needs sqrt(1 + (49 / (9.81 * 3))^2) = 1.94 g; at 6 m/s
+    1.58 g, past the 1.39 g (a 3.8 m turn) the wing sustains there (scripts/
+    dove_turn_limit.py): a dove that follows it has flown it slower than 6 m/s on average.
+
+    One verdict here is a draw near the tube's edge (session 23, seven starts under 1 mm/s
+    apart on an Intel Xeon: with the corrections 1.91-2.20 m off at most on six, 3.59 m and
+    lost on one; without them lost on all seven, 3.6-15.6 m), so the verdicts are asserted
+    over five starts: the median start with the corrections stays in the 3 m tube, and
+    without them every start leaves it."""
+    from flapsim.bird.path import load_path
+    from flapsim.bird.tasks import Task, fly_task
+
     t = np.linspace(0.0, 2 * np.pi, 49)
     f = tmp_path / "c3.csv"
     np.savetxt(f, np.column_stack([3 * np.sin(t), 3 * (1 - np.cos(t)), np.full(t.size, 10.0)]),
                delimiter=",", header="x,y,z", comments="")
-    runs = {}
-    for refine in ("0", "2"):
-        js = tmp_path / f"r{refine}.json"
-        main(["eval", "--path", str(f), "--workers", "1", "--refine", refine, "--json", str(js)])
-        runs[refine] = json.loads(js.read_text())["scenarios"][0]
-    r = runs["2"]
-    assert r["status"] == "completed", r["reason"]
-    m = r["metrics"]
-    assert m["progress_m"] / m["simulated_s"] < 6.0, m
+    js = tmp_path / "r.json"
+    main(["eval", "--path", str(f), "--workers", "1", "--json", str(js)])
+    m = json.loads(js.read_text())["scenarios"][0]["metrics"]
     assert m["way_speed_m_s"] == m["progress_m"] / m["simulated_s"]  # what the note reports
+    path = load_path(f)
+    starts = (0.0, 0.0007, -0.0004, 0.0002, -0.0009)  # m/s of start speed
+    refined = [fly_task(Task(path, start_speed_change=dv), refine=2) for dv in starts]
+    far = np.median([r.metrics["max_path_distance"] for r in refined])
+    assert far < 3.0, [r.metrics["max_path_distance"] for r in refined]
+    assert np.median([r.metrics["way_speed_m_s"] for r in refined]) < 6.0
     # the regression's answers alone (no simulated corrections) spiral out of the 3 m tube
-    assert runs["0"]["status"] == "lost", runs["0"]["reason"]
+    for dv in starts:
+        r = fly_task(Task(path, start_speed_change=dv), refine=0)
+        assert r.status == "lost", (dv, r.reason)
+
 
 @pytest.mark.slow
 def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
