@@ -32,17 +32,19 @@ AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
 
 def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                  tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0,
-                 p: np.ndarray | None = None, speed: float | None = None) -> dict:
+                 p: np.ndarray | None = None, speed: float | None = None,
+                 config: FlightConfig | None = None) -> dict:
     """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
     of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
     tail bend added to P0; ``twist_bias_deg``: both shoulder twists added, + pronates), with
     the feathers' drag dissipation by stroke and by angle of attack, the vertical aerodynamic
     force over the weight and the mean forward speed (see the module). ``p``: fly this
     wingbeat instead (the biases are then not applied); ``speed``: the start's forward speed,
-    m/s (default the cruise start's 7)."""
+    m/s (default the cruise start's 7); ``config``: the start and the table (pitch, speed,
+    tail bias) as ``flapsim fly`` sets them, instead of the defaults."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
-    cfg = FlightConfig()
+    cfg = config or FlightConfig()
     cfg = replace(cfg, table=cfg.table if table is None else table,
                   speed=cfg.speed if speed is None else float(speed))
     if not 1.0 <= cfg.speed <= 30.0:
@@ -120,6 +122,8 @@ def _summarise(rows: list, feather: np.ndarray, dt: float, mass: float) -> dict:
         "aero_up_per_weight": float(up.mean() / (mass * 9.81)),
         "mean_speed_m_s": float(speed.mean()),
     }
+    # mechanical cost of transport: the servos' work per weight and distance flown
+    out["cost_of_transport"] = out["muscle_W"] / (mass * 9.81 * out["mean_speed_m_s"])
     # what the air and the dampers do not account for: the twist hinges' own torques
     # (stops, the plates' inertia), the springs' and gravity's work being in the energy
     out["other_W"] = (out["muscle_W"] - out["dampers_W"] - out["drag_feathers_W"]

@@ -99,6 +99,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="rigid feather plates (default) or modal feathers that bend and twist "
                         "(4 modes each, the paper's sec. 6: slower)")
+    p.add_argument("--power", action="store_true",
+                   help="also the base flight's energy balance: the servos' power, where the air "
+                        "and the dampers take it (feather drag by stroke and angle of attack), "
+                        "the cost of transport (flapsim.bird.power; rigid feathers; the flight "
+                        "is flown again step by step for it)")
     p.add_argument("--fps", type=quantity("fps"), default=30.0, help="video frames per second")
     p.add_argument("--size", default="640x480", help="video size WxH (default 640x480)")
 
@@ -135,6 +140,12 @@ def run(args: argparse.Namespace) -> dict:
     check_regression_options(args)
     cfg = FlightConfig(speed=args.speed, pitch_deg=args.pitch_deg, tail_bias_deg=args.tail_bias_deg,
                        **({"table": args.table} if args.table else {}))
+    if args.power and (args.path or args.controller == "learned" or args.db or args.roll_deg):
+        raise InputError("--power measures the base controller's flight (the reference wingbeat "
+                         "repeated): drop --controller learned, --path, --db and --roll-deg")
+    if args.power and args.feathers != "rigid":
+        raise InputError("--power needs rigid feathers (the modal feathers' forces are not "
+                         "split by polygon)")
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")
@@ -164,6 +175,21 @@ def run(args: argparse.Namespace) -> dict:
           f" vertical {metrics['max_vertical_deviation']:.3f} m")
     pr, rr = metrics["pitch_range_deg"], metrics["roll_range_deg"]
     print(f"  pitch {pr[0]:.1f}..{pr[1]:.1f} deg, roll {rr[0]:.1f}..{rr[1]:.1f} deg")
+    if args.power:
+        from flapsim.bird.power import power_budget
+
+        skip = min(2, args.wingbeats - 1)  # the start's transient out, where there is more
+        pw = power_budget(args.wingbeats, skip, config=cfg)
+        down = pw["drag_feathers_downstroke_W"] / pw["drag_feathers_W"]
+        bins = pw["drag_feathers_by_aoa_W"]
+        steep = (bins["30-45"] + bins["45-60"]) / pw["drag_feathers_W"]
+        print(f"  power over wingbeats {skip + 1}-{args.wingbeats}: servos {pw['muscle_W']:.2f} W "
+              f"(cost of transport {pw['cost_of_transport']:.2f}); feather drag "
+              f"{pw['drag_feathers_W']:.2f} W ({down:.0%} in the downstroke, {steep:.0%} at 30-60 "
+              f"deg angle of attack), body drag {pw['drag_body_W']:.2f} W, dampers "
+              f"{pw['dampers_W']:.2f} W; mechanical energy changing at "
+              f"{pw['mechanical_energy_rate_W']:+.2f} W")
+        result["power"] = pw
     if args.out:
         save_npz(args.out, time=flight.time, trunk_pos=flight.trunk_pos,
                  trunk_quat=flight.trunk_quat, qpos14=flight.qpos14, states=flight.states,

@@ -58,3 +58,23 @@ def test_bad_input_is_one_line():
         power_budget(wingbeats=2, skip=1, speed=0.0)
     with pytest.raises(InputError, match="finite parameters"):
         power_budget(wingbeats=2, skip=1, p=np.zeros(3))
+
+
+def test_fly_power_reports_the_budget(tmp_path, capsys):
+    import json
+
+    from flapsim.cli import main
+
+    js = tmp_path / "f.json"
+    assert main(["fly", "--wingbeats", "2", "--power", "--json", str(js)]) == 0
+    pw = json.loads(js.read_text())["power"]
+    # the same flight (the default start, two wingbeats, the second averaged) as the module's
+    assert pw["muscle_W"] == pytest.approx(power_budget(wingbeats=2, skip=1)["muscle_W"], rel=1e-9)
+    # cost of transport, closed form: P / (m g v)
+    assert pw["cost_of_transport"] == pytest.approx(
+        pw["muscle_W"] / (pw["mass_kg"] * 9.81 * pw["mean_speed_m_s"]), rel=1e-12)
+    assert "cost of transport" in capsys.readouterr().out
+    for extra in (["--controller", "learned"], ["--feathers", "modal"]):
+        assert main(["fly", "--wingbeats", "2", "--power", *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "--power" in err and len(err.splitlines()) == 1
