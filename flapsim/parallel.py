@@ -166,7 +166,9 @@ class _LocalPool:
 
     @property
     def pending(self) -> int:
-        return len(self.futures)
+        # finished but not yet returned counts: one wait can finish several chunks, and a
+        # caller that stops at zero pending would drop them (it did: an eval lost runs)
+        return len(self.futures) + len(self.done)
 
     def next_result(self) -> Any:
         while not self.done:
@@ -211,6 +213,7 @@ class _LocalPool:
         while any(p.exitcode is None for p in procs) and time.monotonic() < deadline:
             time.sleep(0.01)
         self.futures.clear()
+        self.done.clear()
 
 
 class _RayPool:

@@ -407,6 +407,12 @@ def execute(runs: list[tuple[str, object]], workers: int | None, backend: str = 
                             journal.add(i, r)
                         bar.set_postfix_str(f"{r['scenario']}: {r['status']}")
                         bar.update(1)
+            missing = [runs[i][0] for i in order if out[i] is None]
+            if missing:  # never a table that silently lacks a run
+                from flapsim.parallel import WorkerError
+
+                raise WorkerError(f"no result came back for {', '.join(missing)}; run the same "
+                                  "command again to resume")
     finally:
         if journal is not None:
             journal.close()

@@ -131,3 +131,16 @@ def test_a_run_written_when_ctrl_c_lands_is_kept(tmp_path, monkeypatch):
     empty.open({})
     empty.close()
     assert not empty.path.exists()  # no run finished: nothing to resume from, no file left
+
+
+def test_a_run_whose_result_never_came_back_is_an_error_not_a_shorter_table(monkeypatch):
+    # an executor that returns fewer results than runs (as one did when two chunks finished
+    # in the same wait): eval must say so in one line, not print a table without the run
+    from flapsim.commands.eval import execute
+    from flapsim.parallel import ChunkExecutor, WorkerError
+    from flapsim.scenarios import EvalOptions
+
+    monkeypatch.setattr(ChunkExecutor, "map_unordered", lambda self, chunks: iter(()))
+    with pytest.raises(WorkerError, match="no result came back for figure8") as e:
+        execute([("figure8", EvalOptions(quick=True))], workers=1)
+    assert "\n" not in str(e.value)
