@@ -565,6 +565,12 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
                     for r in res:
                         done[int(r["i"])] = r
                     bar.update(len(res))
+    missing = [i for i in range(len(jobs)) if i not in done]
+    if missing:  # a table assembled without them would hold zeros for their cycles
+        from flapsim.parallel import WorkerError
+
+        raise WorkerError(f"no result came back for {len(missing)} of {len(jobs)} calibration "
+                          f"cycles; run the same command again to resume ({journal} keeps the rest)")
     tables = {mode: _assemble(config, done, ident, mode) for mode in config.layers}
     first = tables[config.layers[0]]
     write_json(out_p, {"schema": SCHEMA, "stroke": first.stroke, "provenance": first.provenance,

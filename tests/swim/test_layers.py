@@ -203,3 +203,15 @@ def test_targets_in_3d_and_trajectory_files(tmp_path):
         f.write_text(text)
         with pytest.raises(DataFileError, match=match):
             load_trajectory(str(f))
+
+
+def test_calibration_refuses_to_assemble_without_every_cycle(tmp_path, monkeypatch):
+    # an executor that brings nothing back: the tables would hold zeros for the missing
+    # cycles, so calibrate says so in one line and writes no table
+    from flapsim.parallel import ChunkExecutor, WorkerError
+
+    monkeypatch.setattr(ChunkExecutor, "map_unordered", lambda self, chunks: iter(()))
+    out = tmp_path / "c.cycle.json"
+    with pytest.raises(WorkerError, match="no result came back") as e:
+        cyc.calibrate("crawl", out, workers=1, snapshot_cycles=(0,), weights=(1.0,))
+    assert "\n" not in str(e.value) and not out.exists()
