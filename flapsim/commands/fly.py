@@ -143,6 +143,8 @@ def run(args: argparse.Namespace) -> dict:
     if args.power and (args.path or args.controller == "learned" or args.db or args.roll_deg):
         raise InputError("--power measures the base controller's flight (the reference wingbeat "
                          "repeated): drop --controller learned, --path, --db and --roll-deg")
+    if args.power and args.speed < 1.0:
+        raise InputError(f"--power needs a start of 1-30 m/s, got --speed {args.speed}")
     if args.power and args.feathers != "rigid":
         raise InputError("--power needs rigid feathers (the modal feathers' forces are not "
                          "split by polygon)")
