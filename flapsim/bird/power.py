@@ -72,55 +72,46 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                 d.ctrl[:] = ctrl[k]
                 mujoco.mj_forward(m, d)
                 rep = fl.aero.evaluate(d)
-                s = {"wb": wb, "points": rep.points.copy(), "drag": rep.drag.copy(),
-                     "lift": rep.lift.copy(), "friction": rep.friction.copy(),
-                     "aoa": rep.aoa.copy(), "energy": float(d.energy.sum()),
-                     "up": float((rep.drag + rep.lift + rep.friction)[:, 2].sum()),
-                     "speed": float(np.hypot(d.qvel[0], d.qvel[1])),
-                     "down": bool(d.qvel[flap] < 0.0), "v0": d.qvel.copy(),
-                     "f_act": d.qfrc_actuator.copy(), "f_damp": d.qfrc_damper.copy(),
-                     "f_all": (d.qfrc_actuator + d.qfrc_passive + d.qfrc_constraint).copy()}
+                steps.append({
+                    "wb": wb, "points": rep.points, "drag": rep.drag, "lift": rep.lift,
+                    "friction": rep.friction, "aoa": rep.aoa, "energy": float(d.energy.sum()),
+                    "up": float((rep.drag + rep.lift + rep.friction)[:, 2].sum()),
+                    "speed": float(np.hypot(d.qvel[0], d.qvel[1])),
+                    "down": bool(d.qvel[flap] < 0.0), "v0": d.qvel.copy(),
+                    "f_act": d.qfrc_actuator.copy(), "f_damp": d.qfrc_damper.copy(),
+                    "f_all": d.qfrc_actuator + d.qfrc_passive + d.qfrc_constraint})
                 mujoco.mj_step(m, d)
-                s["v1"] = d.qvel.copy()
-                steps.append(s)
+                steps[-1]["v1"] = d.qvel.copy()
     finally:
         fl.close()
-    rows = []
-    for k in range(len(steps) - 1):
-        s = steps[k]
-        if s["wb"] < skip:
-            continue
-        v = 0.5 * (s["v0"] + s["v1"])  # the step's mean velocity: its work closes the balance
-        # still air: the relative flow is minus the centroid's velocity over the step
-        vrel = -(steps[k + 1]["points"] - s["points"]) / m.opt.timestep
-        rows.append((s["wb"], float(s["f_act"] @ v), float(-(s["f_damp"] @ v)),
-                     float(s["f_all"] @ v), s["down"],
-                     np.einsum("ij,ij->i", s["drag"], vrel),
-                     np.einsum("ij,ij->i", s["lift"], vrel),
-                     np.einsum("ij,ij->i", s["friction"], vrel), s["aoa"],
-                     steps[k + 1]["energy"] - s["energy"], s["up"], s["speed"]))
-    return _summarise(rows, feather, m.opt.timestep, dove.mass)
+    # every step of the wingbeats averaged that has a next step (its end state)
+    use = [k for k in range(len(steps) - 1) if steps[k]["wb"] >= skip]
+    return _summarise(steps, use, feather, m.opt.timestep, dove.mass)
 
 
-def _summarise(rows: list, feather: np.ndarray, dt: float, mass: float) -> dict:
-    n = len(rows)
-    col = lambda i: np.array([r[i] for r in rows])  # noqa: E731
-    muscle, damp, total, down = col(1), col(2), col(3), col(4)
-    drag, lift, fric, aoa, de = col(5), col(6), col(7), np.degrees(col(8)), col(9)
-    up, speed = col(10), col(11)
-    T = n * dt
+def _summarise(steps: list[dict], use: list[int], feather: np.ndarray, dt: float,
+               mass: float) -> dict:
+    col = lambda key, shift=0: np.array([steps[k + shift][key] for k in use])  # noqa: E731
+    v = 0.5 * (col("v0") + col("v1"))  # the step's mean velocity: its work closes the balance
+    work = lambda key: np.einsum("ij,ij->i", col(key), v)  # noqa: E731
+    # still air: the relative flow is minus the centroid's velocity over the step
+    vrel = -(col("points", 1) - col("points")) / dt
+    drag, lift, fric = (np.einsum("sij,sij->si", col(key), vrel)
+                        for key in ("drag", "lift", "friction"))
+    down, aoa = col("down"), np.degrees(col("aoa"))
+    T = len(use) * dt
     out = {
         "seconds": T, "mass_kg": mass,
-        "muscle_W": float(muscle.mean()),
-        "dampers_W": float(damp.mean()),
+        "muscle_W": float(work("f_act").mean()),
+        "dampers_W": float(-work("f_damp").mean()),
         "drag_feathers_W": float(drag[:, feather].sum(1).mean()),
         "drag_body_W": float(drag[:, ~feather].sum(1).mean()),
         "friction_W": float(fric.sum(1).mean()),
         "lift_work_W": float(lift.sum(1).mean()),
-        "mechanical_energy_rate_W": float(de.sum() / T),
-        "work_rate_all_forces_W": float(total.mean()),
-        "aero_up_per_weight": float(up.mean() / (mass * 9.81)),
-        "mean_speed_m_s": float(speed.mean()),
+        "mechanical_energy_rate_W": float((col("energy", 1) - col("energy")).sum() / T),
+        "work_rate_all_forces_W": float(work("f_all").mean()),
+        "aero_up_per_weight": float(col("up").mean() / (mass * 9.81)),
+        "mean_speed_m_s": float(col("speed").mean()),
     }
     # mechanical cost of transport: the servos' work per weight and distance flown
     out["cost_of_transport"] = out["muscle_W"] / (mass * 9.81 * out["mean_speed_m_s"])
@@ -129,12 +120,12 @@ def _summarise(rows: list, feather: np.ndarray, dt: float, mass: float) -> dict:
     out["other_W"] = (out["muscle_W"] - out["dampers_W"] - out["drag_feathers_W"]
                       - out["drag_body_W"] - out["friction_W"] - out["mechanical_energy_rate_W"])
     fd = drag[:, feather]
-    out["drag_feathers_downstroke_W"] = float(fd[down].sum() / n)
-    out["drag_feathers_upstroke_W"] = float(fd[~down].sum() / n)
+    out["drag_feathers_downstroke_W"] = float(fd[down].sum() / len(use))
+    out["drag_feathers_upstroke_W"] = float(fd[~down].sum() / len(use))
     fa = aoa[:, feather]
     bins = {}
     for lo, hi in zip(AOA_BINS_DEG[:-1], AOA_BINS_DEG[1:], strict=True):
         sel = (fa >= lo) & (fa < hi)
-        bins[f"{lo:g}-{hi:g}"] = float(np.where(sel, fd, 0.0).sum() / n)
+        bins[f"{lo:g}-{hi:g}"] = float(np.where(sel, fd, 0.0).sum() / len(use))
     out["drag_feathers_by_aoa_W"] = bins
     return out

@@ -140,14 +140,16 @@ def run(args: argparse.Namespace) -> dict:
     check_regression_options(args)
     cfg = FlightConfig(speed=args.speed, pitch_deg=args.pitch_deg, tail_bias_deg=args.tail_bias_deg,
                        **({"table": args.table} if args.table else {}))
-    if args.power and (args.path or args.controller == "learned" or args.db or args.roll_deg):
-        raise InputError("--power measures the base controller's flight (the reference wingbeat "
-                         "repeated): drop --controller learned, --path, --db and --roll-deg")
-    if args.power and args.speed < 1.0:
-        raise InputError(f"--power needs a start of 1-30 m/s, got --speed {args.speed}")
-    if args.power and args.feathers != "rigid":
-        raise InputError("--power needs rigid feathers (the modal feathers' forces are not "
-                         "split by polygon)")
+    if args.power:  # checked before anything is flown
+        if args.path or args.controller == "learned" or args.db or args.roll_deg:
+            raise InputError("--power measures the base controller's flight (the reference "
+                             "wingbeat repeated): drop --controller learned, --path, --db and "
+                             "--roll-deg")
+        if args.speed < 1.0:
+            raise InputError(f"--power needs a start of 1-30 m/s, got --speed {args.speed}")
+        if args.feathers != "rigid":
+            raise InputError("--power needs rigid feathers (the modal feathers' forces are not "
+                             "split by polygon)")
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")
