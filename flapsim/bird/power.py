@@ -129,3 +129,47 @@ def _summarise(steps: list[dict], use: list[int], feather: np.ndarray, dt: float
         bins[f"{lo:g}-{hi:g}"] = float(np.where(sel, fd, 0.0).sum() / len(use))
     out["drag_feathers_by_aoa_W"] = bins
     return out
+
+
+def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: int = 2,
+                     speed: float = 7.0) -> dict | None:
+    """The cheap part of :func:`power_budget`, for searches over many wingbeats: wingbeat
+    ``p`` repeated ``wingbeats`` times on flight ``fl`` (rigid dove, built with
+    ``use_rollout=False``) from the cruise start at ``speed`` m/s, measured over wingbeats
+    ``skip``..: the servos' mean power (their generalized force over each step times the
+    step's mean velocity, W), the trunk's climb rate (m/s) and change of speed (m/s^2), the
+    rate of the bird's mechanical energy taken as its whole mass moving with the trunk
+    (m (v dv/dt + g dz/dt), W: the wings' own kinetic energy repeats from wingbeat to
+    wingbeat), the end speed (m/s), the trunk's pitch at each wingbeat's end (deg, nose up
+    +) and the mass (kg). None when the flight diverges (a trunk speed over 50 m/s or a
+    non-finite velocity)."""
+    if not 0 <= skip < wingbeats:
+        raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
+    m, d = fl.model, fl.data
+    fl.reset(FlightConfig(speed=float(speed)), p)
+    ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
+    mass = float(m.body_subtreemass[1])
+    work, n, pitch = 0.0, 0, []
+    z0 = v0 = t0 = 0.0
+    for wb in range(wingbeats):
+        if wb == skip:
+            z0, v0, t0 = float(d.qpos[2]), float(np.linalg.norm(d.qvel[0:3])), float(d.time)
+        for k in range(len(ctrl)):
+            d.ctrl[:] = ctrl[k]
+            before = d.qvel.copy()
+            # qfrc_actuator after the step is the one computed at the state it started from
+            # with this step's control: the force that acted over it
+            mujoco.mj_step(m, d)
+            if not np.all(np.isfinite(d.qvel[0:6])) or np.abs(d.qvel[0:3]).max() > 50.0:
+                return None
+            if wb >= skip:
+                work += float(d.qfrc_actuator @ (0.5 * (before + d.qvel)))
+                n += 1
+        w, x, y, z = d.qpos[3:7]
+        # nose up +: the trunk's quaternion turns about -y for a nose-up pitch
+        pitch.append(float(-np.degrees(np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0)))))
+    T = float(d.time) - t0
+    z1, v1 = float(d.qpos[2]), float(np.linalg.norm(d.qvel[0:3]))
+    return {"power_W": work / n, "climb_m_s": (z1 - z0) / T, "accel_m_s2": (v1 - v0) / T,
+            "energy_rate_W": mass * (0.5 * (v1**2 - v0**2) + 9.81 * (z1 - z0)) / T,
+            "speed_m_s": v1, "pitch_deg": pitch, "mass_kg": mass}

@@ -78,3 +78,28 @@ def test_fly_power_reports_the_budget(tmp_path, capsys):
         assert main(["fly", "--wingbeats", "2", "--power", *extra]) == 2
         err = capsys.readouterr().err.strip()
         assert "--power" in err and len(err.splitlines()) == 1
+
+
+def test_the_quick_balance_matches_the_budget():
+    # wingbeat_balance (searches call it thousands of times) against power_budget, which
+    # records every polygon and reads MuJoCo's own energy (mjENBL_ENERGY) over the same
+    # flight: the servos' power to the budget's window, which leaves out its last step (1 of
+    # ~1,030: 0.1 %), so 0.5 %; the energy rate from the trunk's speed and height alone
+    # against the whole bird's, the wings' kinetic energy repeating from wingbeat to wingbeat
+    # so that over four wingbeats it differs by a few hundredths of a watt: 0.05 W, where
+    # half the trunk's kinetic energy change (a dropped 1/2) is ~1 W
+    from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.model import Dove
+    from flapsim.bird.power import wingbeat_balance
+    from flapsim.bird.wingbeat import p0, with_tail_bias
+
+    fl = DoveFlight(Dove.load(), use_rollout=False)
+    try:
+        quick = wingbeat_balance(fl, with_tail_bias(p0(), 17.0), wingbeats=6, skip=2)
+        with pytest.raises(InputError, match="skip"):
+            wingbeat_balance(fl, p0(), wingbeats=2, skip=2)
+    finally:
+        fl.close()
+    full = power_budget(wingbeats=6, skip=2)
+    assert quick["power_W"] == pytest.approx(full["muscle_W"], rel=0.005)
+    assert quick["energy_rate_W"] == pytest.approx(full["mechanical_energy_rate_W"], abs=0.05)

@@ -1,0 +1,154 @@
+"""How much the dove's flight costs can move within the capture's own wingbeats: a global
+search over symmetric changes of the reference wingbeat P0 (tail bias 17 deg), each
+parameter within ``--bound`` standard deviations of the capture cycles' spread about P0.
+
+    PYTHONPATH=. python scripts/dove_wingbeat_search.py --objective cruise [--bound 3]
+        [--workers 2] [--maxiter 60] [--popsize 10] [--seed 0] [--json out.json]
+
+Each candidate flies free from the standard cruise start (7 m/s, level) for ``--wingbeats``
+wingbeats, symmetric, so it neither rolls nor yaws; over wingbeats ``--skip``.. it is
+measured by the servos' mean power (generalized actuator force times the step's mean
+velocity: :func:`flapsim.bird.power.wingbeat_balance`), its climb and acceleration rates
+and its pitch drift.
+
+Objectives:
+
+* ``cruise``: the least servo power of a wingbeat that neither sinks nor slows (each m/s of
+  sink costs 20 W and each m/s^2 of deceleration 10 W in the score, far beyond what a
+  trimmed wingbeat saves) and holds its pitch (0.2 W a degree of drift): the cheapest
+  trimmed cruise the capture's variation allows. P0 itself costs 14.4 W and loses 0.73 W.
+* ``climb``: the largest rate of mechanical energy gain, m (v dv/dt + g dz/dt), W: the
+  surplus a climb or a tight turn draws on, less 0.2 W a degree of pitch drift (it must
+  repeat). Its pitch must stay within +-30 deg and its speed within 4-10 m/s.
+* ``steady-climb``: the fastest climb (as power, m g dz/dt, W) at constant speed (10 W a
+  m/s^2 of acceleration either way), with the same pitch and sanity terms as ``climb``.
+
+Symmetric: the left wing's 12 numbers are searched and copied to the right; with the tail's
+4 and the timewarp, 17 numbers. Scipy's differential evolution, ``--workers`` processes.
+About 0.07 s a candidate on one core; ``--maxiter 60 --popsize 10`` is ~10,000 candidates.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from flapsim.bird.flight import DoveFlight, FlightConfig
+from flapsim.bird.model import MIRROR_PERM, Dove
+from flapsim.bird.power import wingbeat_balance
+from flapsim.bird.wingbeat import N_PARAMS, p0, with_tail_bias
+
+#: The searched parameters: (scale, translation) of the left wing's six DOF and the tail's
+#: two, and the timewarp.
+FREE = np.array([i for j in (*range(6), 12, 13) for i in (2 * j, 2 * j + 1)] + [N_PARAMS - 1])
+
+
+def capture_spread() -> np.ndarray:
+    """Each parameter's standard deviation over the capture cycles (fitted against the
+    reference), the unit of the search's bounds."""
+    from flapsim.bird.capture import reference_capture
+    from flapsim.bird.sampling import capture_wingbeats
+    from flapsim.bird.wingbeat import reference_wingbeat
+
+    return capture_wingbeats(reference_capture(), reference_wingbeat()).dP.std(0)
+
+
+def expand(x: np.ndarray, base: np.ndarray, spread: np.ndarray) -> np.ndarray:
+    """The 29-number wingbeat: ``base`` moved by ``x`` spreads on the free parameters, the
+    right wing a copy of the left."""
+    p = np.array(base, float)
+    p[FREE] += np.asarray(x, float) * spread[FREE]
+    for j in range(6):
+        r = MIRROR_PERM[j]
+        p[2 * r], p[2 * r + 1] = p[2 * j], p[2 * j + 1]
+    return p
+
+
+def score(r: dict | None, objective: str, skip: int) -> float:
+    if r is None:
+        return 1e3
+    drift = abs(r["pitch_deg"][-1] - r["pitch_deg"][skip - 1])
+    if objective == "cruise":
+        return (r["power_W"] + 20.0 * max(0.0, -r["climb_m_s"]) + 10.0 * max(0.0, -r["accel_m_s2"])
+                + 0.2 * drift)
+    sane = max(abs(a) for a in r["pitch_deg"]) <= 30.0 and 4.0 <= r["speed_m_s"] <= 10.0
+    if objective == "steady-climb":
+        # the surplus spent on height alone: no speed lost or gained on the way
+        return (-r["climb_m_s"] * r["mass_kg"] * 9.81 + 10.0 * abs(r["accel_m_s2"]) + 0.2 * drift
+                if sane else 1e2)
+    # a climb's wingbeat must repeat: its pitch may not run away either
+    return -r["energy_rate_W"] + 0.2 * drift if sane else 1e2
+
+
+_WORKER: dict = {}
+
+
+def _evaluate(x: np.ndarray, objective: str, bound: float, wingbeats: int, skip: int,
+              speed: float) -> float:
+    """One candidate (in a worker process: its flight built once)."""
+    if "fl" not in _WORKER:
+        _WORKER["fl"] = DoveFlight(Dove.load(), use_rollout=False)
+        _WORKER["base"] = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
+        _WORKER["spread"] = capture_spread()
+    p = expand(x, _WORKER["base"], _WORKER["spread"])
+    return score(wingbeat_balance(_WORKER["fl"], p, wingbeats, skip, speed), objective, skip)
+
+
+def main() -> None:
+    from scipy.optimize import differential_evolution
+
+    from flapsim.environment import versions
+    from flapsim.io import write_json
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb"), default="cruise")
+    ap.add_argument("--bound", type=float, default=3.0, help="capture spreads each way (default 3)")
+    ap.add_argument("--wingbeats", type=int, default=6)
+    ap.add_argument("--skip", type=int, default=2)
+    ap.add_argument("--speed", type=float, default=7.0, help="the start's forward speed, m/s")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--maxiter", type=int, default=60)
+    ap.add_argument("--popsize", type=int, default=10)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    if not 1 <= a.skip < a.wingbeats:
+        ap.error("need 1 <= --skip < --wingbeats")
+    args = (a.objective, a.bound, a.wingbeats, a.skip, a.speed)
+    t = time.perf_counter()
+    gen = [0]
+
+    def report(intermediate_result) -> None:
+        gen[0] += 1
+        if gen[0] % 10 == 0:
+            print(f"  generation {gen[0]}: best score {intermediate_result.fun:.3f} "
+                  f"({time.perf_counter() - t:.0f} s)", flush=True)
+
+    res = differential_evolution(_evaluate, [(-a.bound, a.bound)] * len(FREE), args=args,
+                                 maxiter=a.maxiter, popsize=a.popsize, seed=a.seed, tol=1e-6,
+                                 workers=a.workers, updating="deferred", polish=False,
+                                 init="sobol", x0=np.zeros(len(FREE)), callback=report)
+    wall = time.perf_counter() - t
+    fl = DoveFlight(Dove.load(), use_rollout=False)
+    base, spread = with_tail_bias(p0(), FlightConfig.tail_bias_deg), capture_spread()
+    best_p = expand(res.x, base, spread)
+    rows = {"P0": wingbeat_balance(fl, base, a.wingbeats, a.skip, a.speed),
+            "best": wingbeat_balance(fl, best_p, a.wingbeats, a.skip, a.speed)}
+    for name, r in rows.items():
+        print(f"{name:5s} servos {r['power_W']:6.2f} W, energy rate {r['energy_rate_W']:+6.2f} W, "
+              f"climb {r['climb_m_s']:+.3f} m/s, accel {r['accel_m_s2']:+.3f} m/s^2, end "
+              f"{r['speed_m_s']:.2f} m/s, pitch {r['pitch_deg'][a.skip - 1]:+.1f} -> "
+              f"{r['pitch_deg'][-1]:+.1f} deg")
+    print(f"{res.nfev} candidates in {wall:.0f} s on {a.workers} workers; largest move "
+          f"{np.abs(res.x).max():.2f} spreads")
+    if a.json:
+        write_json(a.json, {"objective": a.objective, "bound_spreads": a.bound, "score": float(res.fun),
+                            "x_spreads": res.x.tolist(), "wingbeat": best_p.tolist(),
+                            "candidates": int(res.nfev), "wall_s": wall, "flights": rows,
+                            "environment": versions()})
+
+
+if __name__ == "__main__":
+    main()
