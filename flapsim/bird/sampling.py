@@ -281,6 +281,16 @@ class SamplingConfig(StoredConfig):
     tight turn or a steep climb needs lie beyond the capture's ellipses around P0
     (``scripts/dove_turn_limit.py``); P0 and the samples' dP stay P0-relative, so such a
     database merges with one sampled around P0."""
+    centre_wingbeat: tuple = ()
+    """The 29 parameters of the wingbeat phase 1 draws around instead (the biases included,
+    as flown; empty: P0 with ``centre_flap_scale`` and ``centre_timewarp``). For a wingbeat
+    found by ``scripts/dove_wingbeat_search.py``, say the fastest steady climb: the
+    capture's ellipses then spread around it, and the samples' dP stay P0-relative, so such
+    a database merges with one sampled around P0."""
+
+    def __post_init__(self) -> None:
+        # JSON gives a list back: a tuple keeps the configuration frozen and comparable
+        object.__setattr__(self, "centre_wingbeat", tuple(float(x) for x in self.centre_wingbeat))
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -291,6 +301,10 @@ class SamplingConfig(StoredConfig):
         for k in ("centre_flap_scale", "centre_timewarp"):
             if d[k] == 1.0:
                 del d[k]  # likewise
+        if not d["centre_wingbeat"]:
+            del d["centre_wingbeat"]  # likewise
+        else:
+            d["centre_wingbeat"] = list(d["centre_wingbeat"])
         return d
 
     def validate(self) -> None:
@@ -315,6 +329,16 @@ class SamplingConfig(StoredConfig):
             raise InputError(f"--centre-flap-scale must be within 0.5..2, got {self.centre_flap_scale}")
         if not (np.isfinite(self.centre_timewarp) and 0.5 <= self.centre_timewarp <= 2.0):
             raise InputError(f"--centre-timewarp must be within 0.5..2, got {self.centre_timewarp}")
+        if self.centre_wingbeat:
+            from flapsim.bird.wingbeat import N_PARAMS
+
+            c = np.asarray(self.centre_wingbeat)
+            if c.shape != (N_PARAMS,) or not np.all(np.isfinite(c)) or not 0.5 <= c[-1] <= 2.0:
+                raise InputError(f"--centre-wingbeat must be {N_PARAMS} finite wingbeat parameters "
+                                 f"with a timewarp within 0.5..2, got {c.size} numbers")
+            if self.centre_flap_scale != 1.0 or self.centre_timewarp != 1.0:
+                raise InputError("--centre-wingbeat gives the whole centre: leave out "
+                                 "--centre-flap-scale and --centre-timewarp")
 
 
 def sample_fields(S: np.ndarray, dP: np.ndarray, e0: cycle.CycleEnd, e1: cycle.CycleEnd
@@ -468,10 +492,13 @@ class SampleWorker:
 
 
 def sampling_centre(P0: np.ndarray, config: SamplingConfig) -> np.ndarray:
-    """The wingbeat phase 1 draws around: P0 with both shoulder-flap scales multiplied by
-    ``centre_flap_scale`` and the timewarp by ``centre_timewarp``."""
+    """The wingbeat phase 1 draws around: ``centre_wingbeat`` when given, else P0 with both
+    shoulder-flap scales multiplied by ``centre_flap_scale`` and the timewarp by
+    ``centre_timewarp``."""
     from flapsim.bird.wingbeat import with_flap_and_beat
 
+    if config.centre_wingbeat:
+        return np.asarray(config.centre_wingbeat, float)
     return with_flap_and_beat(P0, config.centre_flap_scale, config.centre_timewarp)
 
 

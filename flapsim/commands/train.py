@@ -67,6 +67,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--centre-timewarp", type=float, default=None, metavar="W",
                    help="phase 1: ... and the cycle's duration times W (< 1: a faster beat; "
                         "default 1). See scripts/dove_turn_limit.py for the wingbeats tight turns need")
+    p.add_argument("--centre-wingbeat", default=None, metavar="FILE",
+                   help="phase 1: draw the wingbeats around this wingbeat instead of P0: a JSON "
+                        "file with its 29 parameters under \"wingbeat\" (as "
+                        "scripts/dove_wingbeat_search.py writes them) or as a bare list")
     p.add_argument("--merge", nargs="+", default=None, metavar="DB",
                    help="instead of training: write the samples of these finished databases (of "
                         "the same dove and reference wingbeat) into one database --out, with "
@@ -148,10 +152,12 @@ def validate(args: argparse.Namespace) -> None:
         if v is not None and not (math.isfinite(v) and 0 <= v <= hi):
             raise InputError(f"{flag} must be 0..{hi}, got {v}")
     if args.phase == 2 and any(getattr(args, k, None) is not None for k in (
-            "pre_velocity", "pre_angvel", "pre_speed", "centre_flap_scale", "centre_timewarp")):
-        raise InputError("--pre-velocity, --pre-angvel, --pre-speed, --centre-flap-scale and "
-                         "--centre-timewarp are for phase 1; phase 2 keeps its --from database's "
-                         "pre-states and samples around its discovered wingbeats")
+            "pre_velocity", "pre_angvel", "pre_speed", "centre_flap_scale", "centre_timewarp",
+            "centre_wingbeat")):
+        raise InputError("--pre-velocity, --pre-angvel, --pre-speed, --centre-flap-scale, "
+                         "--centre-timewarp and --centre-wingbeat are for phase 1; phase 2 keeps "
+                         "its --from database's pre-states and samples around its discovered "
+                         "wingbeats")
     if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
         raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
     if args.phase == 2 and (getattr(args, "table", None) or getattr(args, "tail_bias_deg", None) is not None
@@ -166,6 +172,27 @@ def validate(args: argparse.Namespace) -> None:
             raise InputError(f"--from {args.from_db} does not exist or is not a file")
         if src.resolve() == out.resolve():
             raise InputError("--from and --out name the same file; choose another --out")
+
+
+def read_centre_wingbeat(path: str) -> tuple[float, ...]:
+    """--centre-wingbeat's file: a JSON list of numbers, or an object with one under
+    ``wingbeat``; its length and values are checked with the rest of the configuration."""
+    import json
+
+    try:
+        data = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise InputError(f"--centre-wingbeat {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"--centre-wingbeat {path} is not a JSON file ({type(exc).__name__}): give "
+                         "the JSON that scripts/dove_wingbeat_search.py writes") from None
+    if isinstance(data, dict):
+        data = data.get("wingbeat")
+    if not isinstance(data, list) or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in data):
+        raise InputError(f"--centre-wingbeat {path} holds no list of numbers (a list, or one "
+                         "under \"wingbeat\")")
+    return tuple(float(x) for x in data)
 
 
 def phase1(args: argparse.Namespace) -> tuple[Any, type]:
@@ -192,6 +219,8 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
                      ("centre_timewarp", "centre_timewarp")):
         if getattr(args, arg, None) is not None:
             kwargs[key] = float(getattr(args, arg))
+    if getattr(args, "centre_wingbeat", None) is not None:
+        kwargs["centre_wingbeat"] = read_centre_wingbeat(args.centre_wingbeat)
     if getattr(args, "feathers", "rigid") != "rigid":
         kwargs["feathers"] = args.feathers
     if getattr(args, "table", None):
@@ -279,6 +308,7 @@ _NOT_FOR_MERGE = (("samples", None, "--samples"), ("phase", 1, "--phase"), ("sig
                   ("pre_velocity", None, "--pre-velocity"), ("pre_angvel", None, "--pre-angvel"),
                   ("pre_speed", None, "--pre-speed"), ("centre_flap_scale", None, "--centre-flap-scale"),
                   ("centre_timewarp", None, "--centre-timewarp"),
+                  ("centre_wingbeat", None, "--centre-wingbeat"),
                   ("chunk_size", None, "--chunk-size"), ("feathers", "rigid", "--feathers"),
                   ("float32", False, "--float32"), ("table", None, "--table"),
                   ("tail_bias_deg", None, "--tail-bias-deg"), ("twist_bias_deg", None, "--twist-bias-deg"))

@@ -211,3 +211,74 @@ def test_sampling_centre_and_pre_speed_reach_the_sampler():
     finally:
         plain.close()
         moved.close()
+
+
+def test_a_centre_wingbeat_reaches_the_sampler_and_its_provenance(tmp_path):
+    """--centre-wingbeat FILE (a searched wingbeat, as scripts/dove_wingbeat_search.py writes
+    it) moves every drawn wingbeat by (centre - P0), the same random draw otherwise, and is
+    stored with the configuration and read back from it."""
+    import argparse
+
+    from flapsim.bird.sampling import SampleWorker, SamplingConfig
+    from flapsim.commands.train import phase1
+
+    d0 = SamplingConfig(seed=3, pitch_deg=10.0, roll_deg=10.0).to_dict()
+    assert "centre_wingbeat" not in d0  # the bundled database's configuration is unchanged
+    plain = SampleWorker(SamplingConfig(**d0))
+    offset = np.zeros(len(plain.P0))
+    offset[0], offset[1], offset[-1] = 0.05, np.radians(1.0), -0.02  # left flap scale, shift; beat
+    centre = plain.P0 + offset
+    (tmp_path / "c.json").write_text(json.dumps({"objective": "steady-climb",
+                                                 "wingbeat": centre.tolist()}))
+    args = argparse.Namespace(seed=3, sigma=None, pre_pitch_deg=10.0, pre_roll_deg=10.0,
+                              centre_wingbeat=str(tmp_path / "c.json"), feathers="rigid")
+    cfg, _ = phase1(args)
+    d = cfg.to_dict()
+    assert d["centre_wingbeat"] == centre.tolist()
+    assert SamplingConfig.from_dict(json.loads(json.dumps(d))) == cfg  # through a header's JSON
+    moved = SampleWorker(cfg)
+    try:
+        offsets = []
+        for i in range(30):
+            a = plain.ellipses.draw(np.random.default_rng([3, i]), plain.config.sigma)[0]
+            b = moved.draw_wingbeat(np.random.default_rng([3, i]))
+            if b is not None:
+                offsets.append(b - a)
+        assert len(offsets) >= 10
+        np.testing.assert_allclose(offsets, np.tile(offset, (len(offsets), 1)), atol=1e-12)
+    finally:
+        plain.close()
+        moved.close()
+
+
+@pytest.mark.parametrize("content, extra, fragment", [
+    (None, [], "does not exist"),
+    ("not json", [], "is not a JSON file"),
+    ('{"wingbeat": "x"}', [], "holds no list of numbers"),
+    ("[1, 2, 3]", [], "must be 29 finite wingbeat parameters"),
+    (json.dumps([1.0] * 29), ["--centre-flap-scale", "1.1"], "leave out --centre-flap-scale"),
+    (json.dumps([1.0] * 28 + [5.0]), [], "timewarp within 0.5..2"),
+])
+def test_bad_centre_wingbeats_are_one_line(capsys, tmp_path, content, extra, fragment):
+    f = tmp_path / "c.json"
+    if content is not None:
+        f.write_text(content)
+    code, out = _cli(capsys, "--samples", "4", "--centre-wingbeat", str(f), *extra,
+                     "--out", str(tmp_path / "x.db"))
+    err = out.err.strip()
+    assert code == 2 and fragment in err and "\n" not in err, err
+    assert not (tmp_path / "x.db").exists()
+
+
+def test_centre_wingbeat_is_for_phase_1_training_only(capsys, tmp_path):
+    _db(tmp_path / "a.db", 3, 1)
+    _db(tmp_path / "b.db", 2, 2)
+    (tmp_path / "c.json").write_text(json.dumps([1.0] * 29))
+    for args, fragment in ((["--merge", str(tmp_path / "a.db"), str(tmp_path / "b.db")],
+                            "--centre-wingbeat is for training"),
+                           (["--samples", "4", "--phase", "2", "--from", str(tmp_path / "a.db")],
+                            "are for phase 1")):
+        code, out = _cli(capsys, *args, "--centre-wingbeat", str(tmp_path / "c.json"),
+                         "--out", str(tmp_path / "m.db"))
+        err = out.err.strip()
+        assert code == 2 and fragment in err and "\n" not in err, err
