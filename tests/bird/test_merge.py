@@ -166,6 +166,18 @@ def test_pre_state_ranges_reach_the_sampler_and_its_provenance():
     assert om.max() <= 60.0 + 1e-9 and np.all(om.max(axis=0) > 45.0)
 
 
+def _draw_offsets(plain, moved, n: int = 30) -> list:
+    """The moved sampler's wingbeat less the plain one's ellipse draw, for the same (seed 3,
+    i) draws; those the moved one refuses (out of a joint range) left out."""
+    offsets = []
+    for i in range(n):
+        a = plain.ellipses.draw(np.random.default_rng([3, i]), plain.config.sigma)[0]
+        b = moved.draw_wingbeat(np.random.default_rng([3, i]))
+        if b is not None:
+            offsets.append(b - a)
+    return offsets
+
+
 def test_sampling_centre_and_pre_speed_reach_the_sampler():
     """--centre-flap-scale / --centre-timewarp move every drawn wingbeat by the same offset
     (the same random draw otherwise: sample i depends on (seed, i) alone), and --pre-speed
@@ -187,12 +199,7 @@ def test_sampling_centre_and_pre_speed_reach_the_sampler():
     assert (d["cruise_speed"], d["centre_flap_scale"], d["centre_timewarp"]) == (5.5, 1.1, 0.9)
     plain, moved = SampleWorker(SamplingConfig(**d0)), SampleWorker(cfg)
     try:
-        offsets = []
-        for i in range(30):
-            a = plain.ellipses.draw(np.random.default_rng([3, i]), plain.config.sigma)[0]
-            b = moved.draw_wingbeat(np.random.default_rng([3, i]))
-            if b is not None:
-                offsets.append(b - a)
+        offsets = _draw_offsets(plain, moved)
         # P0's flap scales are 1 and its timewarp 1: the centre is +0.1 on both flap scales
         # and -0.1 on the timewarp, nothing else
         expect = np.zeros(len(plain.P0))
@@ -238,12 +245,7 @@ def test_a_centre_wingbeat_reaches_the_sampler_and_its_provenance(tmp_path):
     assert SamplingConfig.from_dict(json.loads(json.dumps(d))) == cfg  # through a header's JSON
     moved = SampleWorker(cfg)
     try:
-        offsets = []
-        for i in range(30):
-            a = plain.ellipses.draw(np.random.default_rng([3, i]), plain.config.sigma)[0]
-            b = moved.draw_wingbeat(np.random.default_rng([3, i]))
-            if b is not None:
-                offsets.append(b - a)
+        offsets = _draw_offsets(plain, moved)
         assert len(offsets) >= 10
         np.testing.assert_allclose(offsets, np.tile(offset, (len(offsets), 1)), atol=1e-12)
     finally:
