@@ -22,10 +22,17 @@ Objectives:
   repeat). Its pitch must stay within +-30 deg and its speed within 4-10 m/s.
 * ``steady-climb``: the fastest climb (as power, m g dz/dt, W) at constant speed (10 W a
   m/s^2 of acceleration either way), with the same pitch and sanity terms as ``climb``.
+* ``steer``: the largest turn to the left in one wingbeat (the heading of the centre of
+  mass's velocity, deg; the mirror image turns right as far), over all 29 parameters (no
+  longer symmetric), the bird flying on at 3 m/s or more and sinking 1 m/s at most (the
+  capture's turns were flown slowly and mostly descending, within 5 deg of level per
+  wingbeat): the paper's "steering range per wingbeat" as the wings allow it (the capture's:
+  -12.5..+7.0 deg).
 
-Symmetric: the left wing's 12 numbers are searched and copied to the right; with the tail's
-4 and the timewarp, 17 numbers. Scipy's differential evolution, ``--workers`` processes.
-About 0.07 s a candidate on one core; ``--maxiter 60 --popsize 10`` is ~10,000 candidates.
+Symmetric (but for ``steer``): the left wing's 12 numbers are searched and copied to the
+right; with the tail's 4 and the timewarp, 17 numbers. Scipy's differential evolution,
+``--workers`` processes. About 0.07 s a candidate on one core; ``--maxiter 60 --popsize 10``
+is ~10,000 candidates.
 """
 
 from __future__ import annotations
@@ -57,8 +64,10 @@ def capture_spread() -> np.ndarray:
 
 def expand(x: np.ndarray, base: np.ndarray, spread: np.ndarray) -> np.ndarray:
     """The 29-number wingbeat: ``base`` moved by ``x`` spreads on the free parameters, the
-    right wing a copy of the left."""
+    right wing a copy of the left; or, given 29 numbers (``steer``), on every parameter."""
     p = np.array(base, float)
+    if len(x) == N_PARAMS:
+        return p + np.asarray(x, float) * spread
     p[FREE] += np.asarray(x, float) * spread[FREE]
     for j in range(6):
         r = MIRROR_PERM[j]
@@ -74,6 +83,11 @@ def score(r: dict | None, objective: str, skip: int) -> float:
         return (r["power_W"] + 20.0 * max(0.0, -r["climb_m_s"]) + 10.0 * max(0.0, -r["accel_m_s2"])
                 + 0.2 * drift)
     sane = max(abs(a) for a in r["pitch_deg"]) <= 30.0 and 4.0 <= r["speed_m_s"] <= 10.0
+    if objective == "steer":
+        # the largest turn to the left in one wingbeat, the flight still flying (the capture's
+        # own turns were flown descending, so some height may be lost)
+        turn = max(np.diff(r["heading_deg"]))
+        return -turn if r["speed_m_s"] >= 3.0 and r["climb_m_s"] >= -1.0 else 1e2
     if objective == "steady-climb":
         # the surplus spent on height alone: no speed lost or gained on the way
         return (-r["climb_m_s"] * r["mass_kg"] * 9.81 + 10.0 * abs(r["accel_m_s2"]) + 0.2 * drift
@@ -103,7 +117,7 @@ def main() -> None:
     from flapsim.io import write_json
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb"), default="cruise")
+    ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb", "steer"), default="cruise")
     ap.add_argument("--bound", type=float, default=3.0, help="capture spreads each way (default 3)")
     ap.add_argument("--wingbeats", type=int, default=6)
     ap.add_argument("--skip", type=int, default=2)
@@ -126,10 +140,11 @@ def main() -> None:
             print(f"  generation {gen[0]}: best score {intermediate_result.fun:.3f} "
                   f"({time.perf_counter() - t:.0f} s)", flush=True)
 
-    res = differential_evolution(_evaluate, [(-a.bound, a.bound)] * len(FREE), args=args,
+    n_free = N_PARAMS if a.objective == "steer" else len(FREE)
+    res = differential_evolution(_evaluate, [(-a.bound, a.bound)] * n_free, args=args,
                                  maxiter=a.maxiter, popsize=a.popsize, seed=a.seed, tol=1e-6,
                                  workers=a.workers, updating="deferred", polish=False,
-                                 init="sobol", x0=np.zeros(len(FREE)), callback=report)
+                                 init="sobol", x0=np.zeros(n_free), callback=report)
     wall = time.perf_counter() - t
     fl = DoveFlight(Dove.load(), use_rollout=False)
     base, spread = with_tail_bias(p0(), FlightConfig.tail_bias_deg), capture_spread()
@@ -140,7 +155,8 @@ def main() -> None:
         print(f"{name:5s} servos {r['power_W']:6.2f} W, energy rate {r['energy_rate_W']:+6.2f} W, "
               f"climb {r['climb_m_s']:+.3f} m/s, accel {r['accel_m_s2']:+.3f} m/s^2, end "
               f"{r['speed_m_s']:.2f} m/s, pitch {r['pitch_deg'][a.skip - 1]:+.1f} -> "
-              f"{r['pitch_deg'][-1]:+.1f} deg")
+              f"{r['pitch_deg'][-1]:+.1f} deg, turns per wingbeat "
+              f"{', '.join(f'{t:+.1f}' for t in np.diff(r['heading_deg']))} deg")
     print(f"{res.nfev} candidates in {wall:.0f} s on {a.workers} workers; largest move "
           f"{np.abs(res.x).max():.2f} spreads")
     if a.json:

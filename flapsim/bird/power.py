@@ -141,8 +141,9 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
     rate of the bird's mechanical energy taken as its whole mass moving with the trunk
     (m (v dv/dt + g dz/dt), W: the wings' own kinetic energy repeats from wingbeat to
     wingbeat), the end speed (m/s), the trunk's pitch at each wingbeat's end (deg, nose up
-    +) and the mass (kg). None when the flight diverges (a trunk speed over 50 m/s or a
-    non-finite velocity)."""
+    +), the heading of the centre of mass's velocity at the start and at each wingbeat's end
+    (deg, + left, unwrapped: the turn per wingbeat is its difference) and the mass (kg). None
+    when the flight diverges (a trunk speed over 50 m/s or a non-finite velocity)."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
     m, d = fl.model, fl.data
@@ -150,6 +151,7 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
     ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
     mass = float(m.body_subtreemass[1])
     work, n, pitch = 0.0, 0, []
+    heading = [cycle_heading(fl)]
     z0 = v0 = t0 = 0.0
     for wb in range(wingbeats):
         if wb == skip:
@@ -168,8 +170,17 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
         w, x, y, z = d.qpos[3:7]
         # nose up +: the trunk's quaternion turns about -y for a nose-up pitch
         pitch.append(float(-np.degrees(np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0)))))
+        heading.append(cycle_heading(fl))
     T = float(d.time) - t0
     z1, v1 = float(d.qpos[2]), float(np.linalg.norm(d.qvel[0:3]))
     return {"power_W": work / n, "climb_m_s": (z1 - z0) / T, "accel_m_s2": (v1 - v0) / T,
             "energy_rate_W": mass * (0.5 * (v1**2 - v0**2) + 9.81 * (z1 - z0)) / T,
-            "speed_m_s": v1, "pitch_deg": pitch, "mass_kg": mass}
+            "speed_m_s": v1, "pitch_deg": pitch,
+            "heading_deg": np.degrees(np.unwrap(np.radians(heading))).tolist(), "mass_kg": mass}
+
+
+def cycle_heading(fl: DoveFlight) -> float:
+    """Heading of the centre of mass's velocity, deg (+ left)."""
+    from flapsim.bird.cycle import heading_and_climb
+
+    return float(np.degrees(heading_and_climb(fl.com_velocity())[0]))

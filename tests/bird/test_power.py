@@ -1,6 +1,7 @@
 """The dove's energy balance in free flight (flapsim.bird.power): every watt the servos put in
 is accounted for by the air's drag, the dampers and the bird's mechanical energy."""
 
+import numpy as np
 import pytest
 
 from flapsim.bird.power import power_budget
@@ -103,3 +104,29 @@ def test_the_quick_balance_matches_the_budget():
     full = power_budget(wingbeats=6, skip=2)
     assert quick["power_W"] == pytest.approx(full["muscle_W"], rel=0.005)
     assert quick["energy_rate_W"] == pytest.approx(full["mechanical_energy_rate_W"], abs=0.05)
+
+
+def test_the_quick_balance_turns_mirror_wingbeats_the_mirror_way():
+    # the heading it reports (the centre of mass's velocity, + left): a symmetric wingbeat on
+    # the symmetric dove from a level start does not turn, and a wingbeat and its mirror image
+    # turn by equal and opposite angles (the model is mirror-exact: README's mirror starts);
+    # 1e-6 deg is float noise over three wingbeats, against the several degrees turned
+    from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.model import DOF_NAMES, Dove
+    from flapsim.bird.power import wingbeat_balance
+    from flapsim.bird.wingbeat import mirror_params, p0, with_tail_bias
+
+    p = with_tail_bias(p0(), 17.0)
+    lopsided = p.copy()
+    lopsided[2 * DOF_NAMES.index("l_shoulder_flap")] *= 1.15  # a wider left stroke
+    fl = DoveFlight(Dove.load(), use_rollout=False)
+    try:
+        straight, left, right = (np.diff(wingbeat_balance(fl, q, wingbeats=3, skip=1)["heading_deg"])
+                                 for q in (p, lopsided, mirror_params(lopsided)))
+    finally:
+        fl.close()
+    assert np.abs(straight).max() < 1e-6
+    # the wider left stroke lifts the left wing more: the dove banks right and turns right,
+    # its heading (+ left) falling, by more each wingbeat as the bank builds
+    assert left[-1] < -1.0 and left[-1] < left[0]
+    np.testing.assert_allclose(right, -left, atol=1e-6)
