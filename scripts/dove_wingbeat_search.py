@@ -24,7 +24,8 @@ Objectives:
   m/s^2 of acceleration either way), with the same pitch and sanity terms as ``climb``.
 * ``steer``: the largest turn to the left in one wingbeat (the heading of the centre of
   mass's velocity, deg; the mirror image turns right as far), over all 29 parameters (no
-  longer symmetric), the bird flying on at 3 m/s or more and sinking 1 m/s at most (the
+  longer symmetric), the bird flying on at ``--min-speed`` (3 m/s) or more, pitched
+  ``--max-pitch`` (90 deg) at most at each wingbeat's end, and sinking 1 m/s at most (the
   capture's turns were flown slowly and mostly descending, within 5 deg of level per
   wingbeat): the paper's "steering range per wingbeat" as the wings allow it (the capture's:
   -12.5..+7.0 deg).
@@ -75,7 +76,10 @@ def expand(x: np.ndarray, base: np.ndarray, spread: np.ndarray) -> np.ndarray:
     return p
 
 
-def score(r: dict | None, objective: str, skip: int) -> float:
+def score(r: dict | None, objective: str, skip: int, limits: dict | None = None) -> float:
+    """The candidate's score (lower is better); ``limits``: ``steer``'s ``min_speed`` (m/s)
+    and ``max_pitch`` (deg)."""
+    limits = limits or {"min_speed": 3.0, "max_pitch": 90.0}
     if r is None:
         return 1e3
     drift = abs(r["pitch_deg"][-1] - r["pitch_deg"][skip - 1])
@@ -87,7 +91,9 @@ def score(r: dict | None, objective: str, skip: int) -> float:
         # the largest turn to the left in one wingbeat, the flight still flying (the capture's
         # own turns were flown descending, so some height may be lost)
         turn = max(np.diff(r["heading_deg"]))
-        return -turn if r["speed_m_s"] >= 3.0 and r["climb_m_s"] >= -1.0 else 1e2
+        flying = (r["speed_m_s"] >= limits["min_speed"] and r["climb_m_s"] >= -1.0
+                  and max(abs(a) for a in r["pitch_deg"]) <= limits["max_pitch"])
+        return -turn if flying else 1e2
     if objective == "steady-climb":
         # the surplus spent on height alone: no speed lost or gained on the way
         return (-r["climb_m_s"] * r["mass_kg"] * 9.81 + 10.0 * abs(r["accel_m_s2"]) + 0.2 * drift
@@ -100,14 +106,15 @@ _WORKER: dict = {}
 
 
 def _evaluate(x: np.ndarray, objective: str, bound: float, wingbeats: int, skip: int,
-              speed: float) -> float:
+              speed: float, min_speed: float, max_pitch: float) -> float:
     """One candidate (in a worker process: its flight built once)."""
     if "fl" not in _WORKER:
         _WORKER["fl"] = DoveFlight(Dove.load(), use_rollout=False)
         _WORKER["base"] = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
         _WORKER["spread"] = capture_spread()
     p = expand(x, _WORKER["base"], _WORKER["spread"])
-    return score(wingbeat_balance(_WORKER["fl"], p, wingbeats, skip, speed), objective, skip)
+    return score(wingbeat_balance(_WORKER["fl"], p, wingbeats, skip, speed), objective, skip,
+                 {"min_speed": min_speed, "max_pitch": max_pitch})
 
 
 def main() -> None:
@@ -122,6 +129,10 @@ def main() -> None:
     ap.add_argument("--wingbeats", type=int, default=6)
     ap.add_argument("--skip", type=int, default=2)
     ap.add_argument("--speed", type=float, default=7.0, help="the start's forward speed, m/s")
+    ap.add_argument("--min-speed", type=float, default=3.0,
+                    help="steer: the end speed it must keep, m/s (default 3)")
+    ap.add_argument("--max-pitch", type=float, default=90.0,
+                    help="steer: the largest pitch either way at a wingbeat's end, deg (default 90)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--maxiter", type=int, default=60)
     ap.add_argument("--popsize", type=int, default=10)
@@ -130,7 +141,7 @@ def main() -> None:
     a = ap.parse_args()
     if not 1 <= a.skip < a.wingbeats:
         ap.error("need 1 <= --skip < --wingbeats")
-    args = (a.objective, a.bound, a.wingbeats, a.skip, a.speed)
+    args = (a.objective, a.bound, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch)
     t = time.perf_counter()
     gen = [0]
 
@@ -160,7 +171,9 @@ def main() -> None:
     print(f"{res.nfev} candidates in {wall:.0f} s on {a.workers} workers; largest move "
           f"{np.abs(res.x).max():.2f} spreads")
     if a.json:
-        write_json(a.json, {"objective": a.objective, "bound_spreads": a.bound, "score": float(res.fun),
+        write_json(a.json, {"objective": a.objective, "bound_spreads": a.bound, "speed": a.speed,
+                            "wingbeats": a.wingbeats, "skip": a.skip, "min_speed": a.min_speed,
+                            "max_pitch": a.max_pitch, "score": float(res.fun),
                             "x_spreads": res.x.tolist(), "wingbeat": best_p.tolist(),
                             "candidates": int(res.nfev), "wall_s": wall, "flights": rows,
                             "environment": versions()})
