@@ -1,15 +1,17 @@
-"""How much the dove's flight costs can move within the capture's own wingbeats: a global
-search over symmetric changes of the reference wingbeat P0 (tail bias 17 deg), each
-parameter within ``--bound`` standard deviations of the capture cycles' spread about P0.
+"""What the dove's wings can do within the capture's own wingbeats: a global search over
+changes of the reference wingbeat P0 (tail bias 17 deg), each parameter within ``--bound``
+standard deviations of the capture cycles' spread about P0 (the phase-1 sampler's sigma is 3:
+every candidate is a wingbeat it could draw).
 
-    PYTHONPATH=. python scripts/dove_wingbeat_search.py --objective cruise [--bound 3]
-        [--workers 2] [--maxiter 60] [--popsize 10] [--seed 0] [--json out.json]
+    PYTHONPATH=. python scripts/dove_wingbeat_search.py --objective cruise|climb|steady-climb|steer
+        [--bound 3] [--speed 7] [--workers 2] [--maxiter 60] [--popsize 10] [--seed 0]
+        [--json out.json]
 
-Each candidate flies free from the standard cruise start (7 m/s, level) for ``--wingbeats``
-wingbeats, symmetric, so it neither rolls nor yaws; over wingbeats ``--skip``.. it is
-measured by the servos' mean power (generalized actuator force times the step's mean
-velocity: :func:`flapsim.bird.power.wingbeat_balance`), its climb and acceleration rates
-and its pitch drift.
+Each candidate is flown free, repeated ``--wingbeats`` times from the standard cruise start
+(level, at ``--speed``), and measured over wingbeats ``--skip``.. by
+:func:`flapsim.bird.power.wingbeat_balance`: the servos' mean power (generalized actuator
+force times the step's mean velocity), its climb and acceleration rates, its pitch and its
+heading per wingbeat. A search finds what is possible, not a bound on it.
 
 Objectives:
 
@@ -31,7 +33,8 @@ Objectives:
   -12.5..+7.0 deg).
 
 Symmetric (but for ``steer``): the left wing's 12 numbers are searched and copied to the
-right; with the tail's 4 and the timewarp, 17 numbers. Scipy's differential evolution,
+right (a symmetric wingbeat neither rolls nor yaws the dove); with the tail's 4 and the
+timewarp, 17 numbers. Scipy's differential evolution,
 ``--workers`` processes. About 0.07 s a candidate on one core; ``--maxiter 60 --popsize 10``
 is ~10,000 candidates.
 """
