@@ -443,9 +443,10 @@ def print_table(results: list[dict]) -> None:
             if "table" in m:
                 note = push_note(m["table"])
             elif "steering_range_deg" in m and r["scenario"].startswith("sinusoid"):
-                lo, hi = m["steering_range_deg"]
+                lo, hi = m.get("steering_range_both_ways_deg") or m["steering_range_deg"]
                 asked = m.get("path_steering_range_deg")
                 note = (f"steering {lo:+.1f}..{hi:+.1f} deg/wingbeat"
+                        + (" (both ways)" if m.get("steering_range_both_ways_deg") else "")
                         + (f" (path {asked[0]:+.1f}..{asked[1]:+.1f})" if asked else "")
                         + (f" (capture {m['capture_steering_range_deg'][0]:+.1f}.."
                            f"{m['capture_steering_range_deg'][1]:+.1f})"

@@ -128,6 +128,8 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
     r, files = _fly(sc, opt, task)
     geometry = path.geometry()
     extra = {"path_geometry": geometry.as_dict()}
+    if p.get("mirror_too"):
+        extra.update(_mirror_flight(sc, opt, task, r, files))
     if np.isfinite(geometry.sustained_radius_m):
         # the level turn's load factor at the speed flown: sqrt(1 + (v^2 / (g r))^2)
         from flapsim.bird.controller import GRAVITY
@@ -139,6 +141,29 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
     if "capture_steering_deg" in p:
         extra["capture_steering_range_deg"] = capture_steering_range()
     return _result(r, files, **extra)
+
+
+def _mirror_flight(sc: Scenario, opt: EvalOptions, task, r, files: list[str]) -> dict:
+    """The task's path mirrored left for right, flown too: a path turning one way first asks
+    each side's extreme turn at another moment of the flight, so the controller's steering
+    range to either side is measured over both (the dove and the regression's samples are
+    mirror images of themselves: each flight is the other's mirror wherever they meet the
+    same request). ``files`` gets the mirror flight's."""
+    import dataclasses
+
+    from flapsim.bird.path import FlightPath
+
+    mirrored = dataclasses.replace(task, path=FlightPath(np.asarray(task.path.points, float)
+                                                         * np.array([1.0, -1.0, 1.0])))
+    rm, more = _fly(sc, opt, mirrored, tag="mirror")
+    files.extend(more)
+    out = {"mirror": {"status": rm.status, "reason": rm.reason,
+                      "steering_range_deg": rm.metrics.get("steering_range_deg"),
+                      "path_steering_range_deg": rm.metrics.get("path_steering_range_deg")}}
+    ranges = [x for x in (r.metrics.get("steering_range_deg"), rm.metrics.get("steering_range_deg")) if x]
+    if ranges:
+        out["steering_range_both_ways_deg"] = [min(a for a, _ in ranges), max(b for _, b in ranges)]
+    return out
 
 
 def _flow(spec) -> tuple:
@@ -355,10 +380,20 @@ def _register() -> None:
     # the 15 m at which a flight stops), so the range is measured over all its waves
     register(Scenario("sinusoid-rapid", "flight", "y = 3 sin(2 pi x / 20 m), 4 waves: turns of 3.4 m radius "
                       "(~12 deg per wingbeat at 7 m/s; beyond the dove: measures its steering "
-                      "range, not in 'all')", P,
+                      "range, flown and mirrored; not in 'all')", P,
                       {"shape": "sinusoid", "args": {"amplitude_m": 3.0, "wavelength_m": 20.0},
-                       "quick_args": {"waves": 1.0}, "capture_steering_deg": True},
-                      cost=6.0, in_all=False))
+                       "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
+                       "mirror_too": True},
+                      cost=12.0, in_all=False))
+    # asks more than the dove can follow (turns of 0.8 m radius, ~30 deg per wingbeat): what
+    # it steers when asked for more, as the paper's steering range is
+    register(Scenario("sinusoid-sharp", "flight", "y = 3 sin(2 pi x / 10 m), 4 waves: turns of 0.8 m "
+                      "radius, asking ~30 deg per wingbeat; measures the steering range, flown and "
+                      "mirrored; not in 'all'", P,
+                      {"shape": "sinusoid", "args": {"amplitude_m": 3.0, "wavelength_m": 10.0},
+                       "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
+                       "mirror_too": True},
+                      cost=10.0, in_all=False))
     for d in ("front", "back", "left", "right", "up", "down"):
         register(Scenario(f"push-{d}", "flight", f"level flight pushed {d} at the trunk's centre of "
                           f"mass for 0.1 s, {'/'.join(f'{f:g}' for f in PUSH_FORCES_N)} N",

@@ -431,3 +431,35 @@ def test_a_family_name_selects_its_part_of_all():
         assert got == [n for n in every if scenarios.get(n).family == family]
     assert sorted(_names(argparse.Namespace(path=None, scenario="flight"))
                   + _names(argparse.Namespace(path=None, scenario="swim"))) == sorted(every)
+
+
+def test_the_sharp_sinusoid_is_flown_and_mirrored(monkeypatch):
+    # sinusoid-sharp (and -rapid) fly the path and its mirror image: the dove and the
+    # regression's samples are mirror images of themselves, so the mirror flight's first
+    # wingbeats turn exactly the other way (until the chaotic flight amplifies rounding: 1e-6
+    # deg over the first ten wingbeats, where they turn by degrees), and the range reported
+    # both ways spans the two flights'
+    from flapsim.scenarios import flight
+
+    flown = []
+    real = flight._fly
+
+    def keep(sc, opt, task, tag=""):
+        r, files = real(sc, opt, task, tag)
+        flown.append(r)
+        return r, files
+
+    monkeypatch.setattr(flight, "_fly", keep)
+    sc = scenarios.get("sinusoid-sharp")
+    assert not sc.in_all
+    res = sc.runner(sc, scenarios.EvalOptions(quick=True))
+    r, rm = flown
+    n = 10
+    assert np.abs(r.steering_deg[:n]).max() > 1.0
+    np.testing.assert_allclose(rm.steering_deg[:n], -r.steering_deg[:n], atol=1e-6)
+    m = res["metrics"]
+    assert m["mirror"]["steering_range_deg"] == [float(np.min(rm.steering_deg)),
+                                                 float(np.max(rm.steering_deg))]
+    assert m["steering_range_both_ways_deg"] == [
+        min(np.min(r.steering_deg), np.min(rm.steering_deg)),
+        max(np.max(r.steering_deg), np.max(rm.steering_deg))]
