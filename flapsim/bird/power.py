@@ -22,6 +22,7 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 
+from flapsim.bird.cycle import heading_and_climb
 from flapsim.bird.flight import BODY_TABLE, DoveFlight, FlightConfig
 from flapsim.bird.model import Dove
 from flapsim.bird.wingbeat import control_table, p0, with_tail_bias, with_twist_bias
@@ -151,7 +152,7 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
     ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
     mass = float(m.body_subtreemass[1])
     work, n, pitch = 0.0, 0, []
-    heading = [cycle_heading(fl)]
+    heading = [com_heading_deg(fl)]
     z0 = v0 = t0 = 0.0
     for wb in range(wingbeats):
         if wb == skip:
@@ -170,7 +171,7 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
         w, x, y, z = d.qpos[3:7]
         # nose up +: the trunk's quaternion turns about -y for a nose-up pitch
         pitch.append(float(-np.degrees(np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0)))))
-        heading.append(cycle_heading(fl))
+        heading.append(com_heading_deg(fl))
     T = float(d.time) - t0
     z1, v1 = float(d.qpos[2]), float(np.linalg.norm(d.qvel[0:3]))
     return {"power_W": work / n, "climb_m_s": (z1 - z0) / T, "accel_m_s2": (v1 - v0) / T,
@@ -179,8 +180,6 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
             "heading_deg": np.degrees(np.unwrap(np.radians(heading))).tolist(), "mass_kg": mass}
 
 
-def cycle_heading(fl: DoveFlight) -> float:
+def com_heading_deg(fl: DoveFlight) -> float:
     """Heading of the centre of mass's velocity, deg (+ left)."""
-    from flapsim.bird.cycle import heading_and_climb
-
     return float(np.degrees(heading_and_climb(fl.com_velocity())[0]))
