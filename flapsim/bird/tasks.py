@@ -424,6 +424,9 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
         "wingbeats": len(quats), "simulated_s": sim_s, "progress_m": float(target.s),
         "path_length_m": task.path.length, "collisions": collisions,
         "steering_range_deg": [float(np.min(steer)), float(np.max(steer))] if steer else None,
+        # what it steered while following the path: the wingbeats that ended within the tube
+        # (a bird lost and stalling swings its velocity's heading by tens of degrees)
+        "steering_range_in_tube_deg": _range(steer[:len(steer) if lost_at is None else lost_at[0] - 1]),
         "elevation_range_deg": [float(np.min(elev)), float(np.max(elev))] if elev else None,
         "path_steering_range_deg": _path_steering(task.path, progress_s, positions_a),
         "real_time_factor": sim_s / wall if wall > 0 else None,
@@ -431,6 +434,10 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
     })
     return TaskResult(status, reason, metrics, positions_a, quats_a, desired, np.array(steer),
                       np.array(elev), qpos_a, np.array(times), wall, collisions, push_log)
+
+
+def _range(values: list[float]) -> list[float] | None:
+    return [float(np.min(values)), float(np.max(values))] if len(values) else None
 
 
 def _path_steering(path, progress_s: list[float], positions: np.ndarray) -> list[float] | None:

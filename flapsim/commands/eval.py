@@ -445,8 +445,12 @@ def print_table(results: list[dict]) -> None:
             elif "steering_range_deg" in m and r["scenario"].startswith("sinusoid"):
                 lo, hi = m.get("steering_range_both_ways_deg") or m["steering_range_deg"]
                 asked = m.get("path_steering_range_deg")
+                tube = (m.get("steering_range_in_tube_both_ways_deg")
+                        or m.get("steering_range_in_tube_deg"))
                 note = (f"steering {lo:+.1f}..{hi:+.1f} deg/wingbeat"
                         + (" (both ways)" if m.get("steering_range_both_ways_deg") else "")
+                        + (f", {tube[0]:+.1f}..{tube[1]:+.1f} in the tube"
+                           if tube and r.get("status") != "completed" else "")
                         + (f" (path {asked[0]:+.1f}..{asked[1]:+.1f})" if asked else "")
                         + (f" (capture {m['capture_steering_range_deg'][0]:+.1f}.."
                            f"{m['capture_steering_range_deg'][1]:+.1f})"

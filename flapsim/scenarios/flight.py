@@ -38,7 +38,8 @@ def primary_name(side: str, from_outermost: int) -> str:
 def _summary(r) -> dict:
     keep = ("Ep_per_wingbeat", "Er_per_wingbeat", "Eo_per_wingbeat", "Ef_per_wingbeat",
             "Ep", "Er", "Eo", "Ef", "max_path_distance", "wingbeats", "simulated_s", "progress_m",
-            "path_length_m", "collisions", "steering_range_deg", "path_steering_range_deg",
+            "path_length_m", "collisions", "steering_range_deg", "steering_range_in_tube_deg",
+            "path_steering_range_deg",
             "elevation_range_deg",
             "real_time_factor", "way_speed_m_s", "min_tree_clearance")
     out = {k: r.metrics[k] for k in keep if k in r.metrics}
@@ -157,12 +158,14 @@ def _mirror_flight(sc: Scenario, opt: EvalOptions, task, r, files: list[str]) ->
                                                          * np.array([1.0, -1.0, 1.0])))
     rm, more = _fly(sc, opt, mirrored, tag="mirror")
     files.extend(more)
+    keys = ("steering_range_deg", "steering_range_in_tube_deg", "path_steering_range_deg")
     out = {"mirror": {"status": rm.status, "reason": rm.reason,
-                      "steering_range_deg": rm.metrics.get("steering_range_deg"),
-                      "path_steering_range_deg": rm.metrics.get("path_steering_range_deg")}}
-    ranges = [x for x in (r.metrics.get("steering_range_deg"), rm.metrics.get("steering_range_deg")) if x]
-    if ranges:
-        out["steering_range_both_ways_deg"] = [min(a for a, _ in ranges), max(b for _, b in ranges)]
+                      **{k: rm.metrics.get(k) for k in keys}}}
+    for key, both in (("steering_range_deg", "steering_range_both_ways_deg"),
+                      ("steering_range_in_tube_deg", "steering_range_in_tube_both_ways_deg")):
+        ranges = [x for x in (r.metrics.get(key), rm.metrics.get(key)) if x]
+        if ranges:
+            out[both] = [min(a for a, _ in ranges), max(b for _, b in ranges)]
     return out
 
 

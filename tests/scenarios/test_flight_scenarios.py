@@ -446,14 +446,14 @@ def test_the_sharp_sinusoid_is_flown_and_mirrored(monkeypatch):
 
     def keep(sc, opt, task, tag=""):
         r, files = real(sc, opt, task, tag)
-        flown.append(r)
+        flown.append((task, r))
         return r, files
 
     monkeypatch.setattr(flight, "_fly", keep)
     sc = scenarios.get("sinusoid-sharp")
     assert not sc.in_all
     res = sc.runner(sc, scenarios.EvalOptions(quick=True))
-    r, rm = flown
+    (task, r), (_, rm) = flown
     n = 10
     assert np.abs(r.steering_deg[:n]).max() > 1.0
     np.testing.assert_allclose(rm.steering_deg[:n], -r.steering_deg[:n], atol=1e-6)
@@ -463,3 +463,26 @@ def test_the_sharp_sinusoid_is_flown_and_mirrored(monkeypatch):
     assert m["steering_range_both_ways_deg"] == [
         min(np.min(r.steering_deg), np.min(rm.steering_deg)),
         max(np.max(r.steering_deg), np.max(rm.steering_deg))]
+    # in the tube: the wingbeats that end within it, found here from the flown positions
+    off = np.array([task.path.distance(p) for p in r.positions[1:]])
+    inside = len(off) if np.all(off <= task.tube_m) else int(np.argmax(off > task.tube_m))
+    assert inside >= n  # the quick path's first wave is followed
+    assert r.metrics["steering_range_in_tube_deg"] == [float(np.min(r.steering_deg[:inside])),
+                                                       float(np.max(r.steering_deg[:inside]))]
+
+
+def test_the_steering_in_the_tube_stops_where_the_bird_left_it():
+    # a tube too narrow for the sharp sinusoid: the bird leaves it within a few wingbeats and
+    # flies on; the range "in the tube" covers the wingbeats that ended within it, found here
+    # from the flown positions and the path
+    from flapsim.bird import paths
+    from flapsim.bird.tasks import Task, fly_task
+
+    task = Task(paths.sinusoid(amplitude_m=3.0, wavelength_m=10.0, waves=1.0), tube_m=0.5)
+    r = fly_task(task)
+    assert r.status == "lost"
+    off = np.array([task.path.distance(p) for p in r.positions[1:]])
+    inside = int(np.argmax(off > task.tube_m))
+    assert 0 < inside < len(r.steering_deg)
+    assert r.metrics["steering_range_in_tube_deg"] == [float(np.min(r.steering_deg[:inside])),
+                                                       float(np.max(r.steering_deg[:inside]))]
