@@ -378,25 +378,21 @@ def _register() -> None:
     for name, summary, runner, params in entries:
         register(Scenario(name, "flight", summary, runner, params,
                           cost=costs.get(name, 3.0)))
-    # what the dove can steer, not what a path asks: turns of 3.4 m radius ask ~12 deg per
-    # wingbeat at 7 m/s, the capture set's extreme; flown on after leaving the tube (up to
-    # the 15 m at which a flight stops), so the range is measured over all its waves
-    register(Scenario("sinusoid-rapid", "flight", "y = 3 sin(2 pi x / 20 m), 4 waves: turns of 3.4 m radius "
-                      "(~12 deg per wingbeat at 7 m/s; beyond the dove: measures its steering "
-                      "range, flown and mirrored; not in 'all')", P,
-                      {"shape": "sinusoid", "args": {"amplitude_m": 3.0, "wavelength_m": 20.0},
-                       "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
-                       "mirror_too": True},
-                      cost=12.0, in_all=False))
-    # asks more than the dove can follow (turns of 0.8 m radius, ~30 deg per wingbeat): what
-    # it steers when asked for more, as the paper's steering range is
-    register(Scenario("sinusoid-sharp", "flight", "y = 3 sin(2 pi x / 10 m), 4 waves: turns of 0.8 m "
-                      "radius, asking ~30 deg per wingbeat; measures the steering range, flown and "
-                      "mirrored; not in 'all'", P,
-                      {"shape": "sinusoid", "args": {"amplitude_m": 3.0, "wavelength_m": 10.0},
-                       "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
-                       "mirror_too": True},
-                      cost=10.0, in_all=False))
+    # what the dove can steer, not what a path asks, each flown and mirrored (see
+    # _mirror_flight) and flown on after leaving the tube (up to the 15 m at which a flight
+    # stops): turns of 3.4 m radius ask ~12 deg per wingbeat at 7 m/s, the capture set's
+    # extreme; turns of 0.8 m radius ask ~30, more than the dove can follow (what it steers
+    # when asked for more, as the paper's steering range is)
+    for name, wavelength, what, cost in (
+            ("sinusoid-rapid", 20.0, "turns of 3.4 m radius (~12 deg per wingbeat at 7 m/s; "
+             "beyond the dove)", 12.0),
+            ("sinusoid-sharp", 10.0, "turns of 0.8 m radius (~30 deg per wingbeat)", 10.0)):
+        register(Scenario(name, "flight", f"y = 3 sin(2 pi x / {wavelength:g} m), 4 waves: {what}; "
+                          "measures the steering range, flown and mirrored; not in 'all'", P,
+                          {"shape": "sinusoid", "args": {"amplitude_m": 3.0, "wavelength_m": wavelength},
+                           "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
+                           "mirror_too": True},
+                          cost=cost, in_all=False))
     for d in ("front", "back", "left", "right", "up", "down"):
         register(Scenario(f"push-{d}", "flight", f"level flight pushed {d} at the trunk's centre of "
                           f"mass for 0.1 s, {'/'.join(f'{f:g}' for f in PUSH_FORCES_N)} N",
