@@ -150,7 +150,7 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
     m, d = fl.model, fl.data
     fl.reset(FlightConfig(speed=float(speed)), p)
     ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
-    mass = float(m.body_subtreemass[1])
+    mass = float(fl.dove.mass)
     work, n, pitch = 0.0, 0, []
     heading = [com_heading_deg(fl)]
     z0 = v0 = t0 = 0.0
@@ -168,9 +168,7 @@ def wingbeat_balance(fl: DoveFlight, p: np.ndarray, wingbeats: int = 6, skip: in
             if wb >= skip:
                 work += float(d.qfrc_actuator @ (0.5 * (before + d.qvel)))
                 n += 1
-        w, x, y, z = d.qpos[3:7]
-        # nose up +: the trunk's quaternion turns about -y for a nose-up pitch
-        pitch.append(float(-np.degrees(np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0)))))
+        pitch.append(float(np.degrees(fl.reduced_state()[0])))  # the state's pitch, nose up +
         heading.append(com_heading_deg(fl))
     T = float(d.time) - t0
     z1, v1 = float(d.qpos[2]), float(np.linalg.norm(d.qvel[0:3]))

@@ -423,11 +423,11 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
     metrics.update({
         "wingbeats": len(quats), "simulated_s": sim_s, "progress_m": float(target.s),
         "path_length_m": task.path.length, "collisions": collisions,
-        "steering_range_deg": [float(np.min(steer)), float(np.max(steer))] if steer else None,
+        "steering_range_deg": _range(steer),
         # what it steered while following the path: the wingbeats that ended within the tube
         # (a bird lost and stalling swings its velocity's heading by tens of degrees)
         "steering_range_in_tube_deg": _range(steer[:len(steer) if lost_at is None else lost_at[0] - 1]),
-        "elevation_range_deg": [float(np.min(elev)), float(np.max(elev))] if elev else None,
+        "elevation_range_deg": _range(elev),
         "path_steering_range_deg": _path_steering(task.path, progress_s, positions_a),
         "real_time_factor": sim_s / wall if wall > 0 else None,
         "way_speed_m_s": float(target.s) / sim_s if sim_s > 0 else None,
@@ -437,6 +437,7 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
 
 
 def _range(values: list[float]) -> list[float] | None:
+    """[smallest, largest] of ``values``, or None for none."""
     return [float(np.min(values)), float(np.max(values))] if len(values) else None
 
 
