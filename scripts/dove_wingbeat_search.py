@@ -108,7 +108,7 @@ def score(r: dict | None, objective: str, skip: int, limits: dict | None = None)
 _WORKER: dict = {}
 
 
-def _evaluate(x: np.ndarray, objective: str, bound: float, wingbeats: int, skip: int,
+def _evaluate(x: np.ndarray, objective: str, wingbeats: int, skip: int,
               speed: float, min_speed: float, max_pitch: float) -> float:
     """One candidate (in a worker process: its flight built once)."""
     if "fl" not in _WORKER:
@@ -144,7 +144,7 @@ def main() -> None:
     a = ap.parse_args()
     if not 1 <= a.skip < a.wingbeats:
         ap.error("need 1 <= --skip < --wingbeats")
-    args = (a.objective, a.bound, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch)
+    args = (a.objective, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch)
     t = time.perf_counter()
     gen = [0]
 
