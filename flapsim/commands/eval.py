@@ -161,6 +161,11 @@ def _names(args: argparse.Namespace) -> list[str]:
     if args.path:
         if args.scenario not in (None, "path"):
             raise InputError("--path flies your path file (scenario 'path'); drop --scenario")
+        from flapsim.bird.path import load_path
+
+        # a bad file is the user's input error (exit 2, one line), as for fly and view, not a
+        # failed run in the table after the workers have started
+        load_path(args.path)
         return ["path"]
     spec = args.scenario or DEFAULT_SCENARIO
     if spec == "all":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -141,6 +142,16 @@ def test_eval_cli_errors_are_one_line(tmp_path, capsys):
     assert main(["eval", "--list", "--json", str(tmp_path / "l.json")]) == 0
     listed = {r["name"] for r in json.loads((tmp_path / "l.json").read_text())["scenarios"]}
     assert set(scenarios.names()) <= listed
+    # a bad path file is refused before any run starts, as fly and view refuse it: exit 2, one
+    # line naming the file, and no JSON (a failed run in the table used to be written)
+    for name, content in (("nan.csv", "x,y,z\n0,0,0\nnan,1,1\n"), ("noheader.csv", "1,2,3\n4,5,6\n"),
+                          ("one.csv", "x,y,z\n0,0,0\n")):
+        f, js = tmp_path / name, tmp_path / f"{name}.json"
+        f.write_text(content)
+        assert main(["eval", "--path", str(f), "--json", str(js)]) == 2
+        err = capsys.readouterr().err
+        assert name in err and len(err.strip().splitlines()) == 1, err
+        assert not js.exists() and not Path(f"{js}.partial").exists()
 
 
 @pytest.mark.slow
