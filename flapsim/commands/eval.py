@@ -155,6 +155,17 @@ def _dir(flag: str, value: str | None) -> str | None:
     return str(p)
 
 
+def _wider(m: dict) -> str:
+    """The table's word on the steering range against the capture's, per side."""
+    w = m.get("steering_wider_than_capture")
+    if not w:
+        return ""
+    sides = [side for side in ("right", "left") if w[side]]
+    if len(sides) == 1:
+        return f": wider on the {sides[0]} only"
+    return ": wider on both sides" if sides else ": wider on neither side"
+
+
 def _names(args: argparse.Namespace) -> list[str]:
     from flapsim import scenarios
 
@@ -458,7 +469,7 @@ def print_table(results: list[dict]) -> None:
                            if tube and r.get("status") != "completed" else "")
                         + (f" (path {asked[0]:+.1f}..{asked[1]:+.1f})" if asked else "")
                         + (f" (capture {m['capture_steering_range_deg'][0]:+.1f}.."
-                           f"{m['capture_steering_range_deg'][1]:+.1f})"
+                           f"{m['capture_steering_range_deg'][1]:+.1f}{_wider(m)})"
                            if m.get("capture_steering_range_deg") else "") + (f"; {note}" if note else ""))
             elif "min_separation_m" in m:
                 note = f"closest birds {m['min_separation_m']:.2f} m" + (f"; {note}" if note else "")

@@ -26,6 +26,10 @@ PUSH_BACK_M = 1.5
 LEFT_PLUCKS = {"plucked-3": (2, 5, 8), "plucked-4": (2, 5, 7, 8)}
 """Primaries plucked on the left wing, counted from the outermost (the paper's Fig. 15)."""
 N_PRIMARIES = 10
+CAPTURE_TOP_SPEED = 5.0
+"""``sinusoid-slow``'s speed asked, m/s: about the fastest of the capture's flights (2.0-5.1 m/s,
+the flight paper's sec. 7), which its steering range of -12.5..+7.0 deg per wingbeat was
+flown at."""
 
 
 def primary_name(side: str, from_outermost: int) -> str:
@@ -125,7 +129,7 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         path = shape(**args)
     task = Task(path, wind=tuple(p.get("wind", (0.0, 0.0, 0.0))), flow=_flow(p.get("flow", ())),
                 plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0),
-                feathers=opt.feathers)
+                feathers=opt.feathers, **({"speed": float(p["speed"])} if "speed" in p else {}))
     r, files = _fly(sc, opt, task)
     geometry = path.geometry()
     extra = {"path_geometry": geometry.as_dict()}
@@ -140,7 +144,15 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
             np.hypot(1.0, v**2 / (GRAVITY * geometry.sustained_radius_m)))
         extra["speed_asked"] = float(v)
     if "capture_steering_deg" in p:
-        extra["capture_steering_range_deg"] = capture_steering_range()
+        capture = capture_steering_range()
+        extra["capture_steering_range_deg"] = capture
+        # while following the path (a lost bird stalls and swings its heading), both ways
+        # where the path was mirrored too
+        tube = (extra.get("steering_range_in_tube_both_ways_deg")
+                or r.metrics.get("steering_range_in_tube_deg"))
+        if tube:
+            extra["steering_wider_than_capture"] = {"right": bool(tube[0] < capture[0]),
+                                                    "left": bool(tube[1] > capture[1])}
     return _result(r, files, **extra)
 
 
@@ -393,6 +405,16 @@ def _register() -> None:
                            "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
                            "mirror_too": True},
                           cost=cost, in_all=False))
+    # the capture's steering range (-12.5..+7.0 deg per wingbeat) was flown at 2.0-5.1 m/s (the
+    # flight paper, sec. 7); a wingbeat's turn is the lateral acceleration times its duration
+    # over the speed, so the same bank turns a slower bird further in one wingbeat
+    register(Scenario("sinusoid-slow", "flight", "sinusoid-sharp's path flown at 5 m/s, the top of "
+                      "the capture's 2.0-5.1 m/s: the steering range at the speeds the capture's "
+                      "was measured at, flown and mirrored; not in 'all'", P,
+                      {"shape": "sinusoid", "args": {"amplitude_m": 3.0, "wavelength_m": 10.0},
+                       "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
+                       "mirror_too": True, "speed": CAPTURE_TOP_SPEED},
+                      cost=12.0, in_all=False))
     for d in ("front", "back", "left", "right", "up", "down"):
         register(Scenario(f"push-{d}", "flight", f"level flight pushed {d} at the trunk's centre of "
                           f"mass for 0.1 s, {'/'.join(f'{f:g}' for f in PUSH_FORCES_N)} N",

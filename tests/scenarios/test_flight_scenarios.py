@@ -482,6 +482,51 @@ def test_the_sharp_sinusoid_is_flown_and_mirrored(monkeypatch):
                                                        float(np.max(r.steering_deg[:inside]))]
 
 
+@pytest.mark.parametrize("ranges, wider, word", [
+    # (the path's flight, its mirror's), in the tube; the capture's is -12.5..+7.0
+    (([-13.8, 12.2], [-10.6, 9.0]), {"right": True, "left": True}, "wider on both sides"),
+    (([-11.5, 11.5], [-11.8, 10.0]), {"right": False, "left": True}, "wider on the left only"),
+    (([-12.0, 6.0], [-12.4, 6.9]), {"right": False, "left": False}, "wider on neither side"),
+    (([-12.0, 6.0], [-12.6, 6.9]), {"right": True, "left": False}, "wider on the right only"),
+])
+def test_the_slow_sinusoid_flies_the_sharp_path_at_the_captures_speed(monkeypatch, capsys, ranges,
+                                                                      wider, word):
+    # sinusoid-slow asks 5 m/s, about the capture's fastest (2.0-5.1 m/s, the paper's sec. 7),
+    # on sinusoid-sharp's path; each side of the steering range is judged against the
+    # capture's over both flights while in the tube (the flights are stubbed: the verdict's
+    # arithmetic, on ranges chosen each side of -12.5 and +7.0)
+    from types import SimpleNamespace
+
+    from flapsim.commands.eval import print_table
+    from flapsim.scenarios import flight
+
+    flown = []
+
+    def fake(sc, opt, task, tag=""):
+        flown.append(task)
+        rng = ranges[len(flown) - 1]
+        return SimpleNamespace(status="lost", ok=False, reason="", metrics={
+            "steering_range_deg": rng, "steering_range_in_tube_deg": rng}), []
+
+    monkeypatch.setattr(flight, "_fly", fake)
+    slow, sharp = scenarios.get("sinusoid-slow"), scenarios.get("sinusoid-sharp")
+    assert not slow.in_all
+    res = slow.runner(slow, scenarios.EvalOptions())
+    task, mirrored = flown
+    assert task.speed == flight.CAPTURE_TOP_SPEED == 5.0 and mirrored.speed == 5.0
+    assert flight.capture_steering_range() == [-12.5, 7.0]
+    m = res["metrics"]
+    assert m["steering_wider_than_capture"] == wider
+    np.testing.assert_allclose(mirrored.path.points * [1, -1, 1], task.path.points)
+    # the same path as sinusoid-sharp's, flown at 7 m/s
+    flown.clear()
+    sharp.runner(sharp, scenarios.EvalOptions())
+    assert flown[0].speed == 7.0
+    np.testing.assert_allclose(flown[0].path.points, task.path.points)
+    print_table([{**res, "scenario": "sinusoid-slow", "family": "flight"}])
+    assert f"(capture -12.5..+7.0: {word})" in capsys.readouterr().out
+
+
 def test_the_steering_in_the_tube_stops_where_the_bird_left_it():
     # a tube too narrow for the sharp sinusoid: the bird leaves it within a few wingbeats and
     # flies on; the range "in the tube" covers the wingbeats that ended within it, found here
