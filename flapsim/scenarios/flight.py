@@ -345,7 +345,8 @@ def _register() -> None:
         ("figure8-rise3", "the same figure of eight rising and falling 3 m (climbs up to 3.5 deg "
          "while turning)", P,
          {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 3.0},
-          "quick_args": {"lobe_m": 10.0, "rise_m": 0.5}}),
+          # 1.5x figure8's quick rise, as its whole rise is 1.5x figure8's: another quick run
+          "quick_args": {"lobe_m": 10.0, "rise_m": 0.75}}),
         ("figure8-level", "figure of eight, 35 m lobes, level", P,
          {"shape": "figure8", "args": {"lobe_m": 35.0, "rise_m": 0.0},
           "quick_args": {"lobe_m": 10.0}}),
