@@ -173,6 +173,9 @@ class Task:
     aoa_per_g_deg: float | None = None
     """The path target asks this much more angle of attack per g of a turn's load factor,
     deg (None: the dove's default, :data:`DEFAULT_AOA_PER_G_DEG`; 0: the paper's)."""
+    max_bank_deg: float | None = None
+    """The largest bank the path target asks, deg (None: its own,
+    :attr:`~flapsim.bird.path.PathTarget.max_bank_deg`, 45)."""
     climb_per_speed_deficit: float | None = None
     """The climb asked drops this much per m/s of airspeed below the speed asked, rad s/m
     (None: the dove's default, :data:`DEFAULT_CLIMB_PER_SPEED_DEFICIT`; 0: independent speed
@@ -298,6 +301,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         lead["climb_per_speed_deficit"] = default_climb_per_speed_deficit(
             task.feathers, task.climb_per_speed_deficit)
         lead["turn_load_factor"] = float(task.turn_load_factor)
+        if task.max_bank_deg is not None:
+            lead["max_bank_deg"] = float(task.max_bank_deg)
         lead["turn_speed_floor"] = float(min(task.speed, PathTarget.turn_speed_floor)
                                          if task.turn_speed_floor is None else task.turn_speed_floor)
         target = PathTarget(trim, task.path, speed=task.speed, **lead)

@@ -63,7 +63,7 @@ def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
 
 
 _TASK_OPTIONS = ("bank_lead_s", "speed", "aoa_per_g_deg", "climb_per_speed_deficit",
-                 "turn_load_factor", "turn_speed_floor", "start_speed_change")
+                 "turn_load_factor", "turn_speed_floor", "start_speed_change", "max_bank_deg")
 
 
 def _fly_task(task, opt: EvalOptions, record: bool):

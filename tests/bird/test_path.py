@@ -376,6 +376,33 @@ def test_the_bank_asked_is_the_recovery_curves_bank_lead_seconds_on(lead):
     assert quat_distance(tgt.desired[-1][1], q) < 1e-4
 
 
+@pytest.mark.parametrize("cap", [45.0, 50.0, 60.0])
+def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys):
+    # the bird 3 m left of a straight path: the recovery curve's bank at the wingbeat's end
+    # (lead 0, dt = 0.1 s, u = 0.1) is atan(a_lat / g) with a = (12u - 6) 3 = -14.4 m/s^2 across
+    # and v = (7, (6u^2 - 6u) 3) = (7, -1.62): a_lat = 14.4 * 7 / 7.185 = 14.03 m/s^2, a bank
+    # of 55.0 deg toward the path; asked, it is cut at the cap (tolerance: as above)
+    from flapsim.bird.controller import Trim
+    from flapsim.bird.cycle import CycleEnd
+    from flapsim.bird.path import PathTarget
+
+    path = FlightPath(np.array([[0, 0, 10.0], [200.0, 0, 10.0]]))
+    tgt = PathTarget(Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0])), path, speed=7.0,
+                     ki_speed=0.0, ki_altitude=0.0, bank_lead_s=0.0, max_bank_deg=cap)
+    p, v, dt = np.array([5.0, 3.0, 10.0]), np.array([7.0, 0, 0]), 0.1
+    tgt.begin(p, v)
+    tgt(CycleEnd(None, np.zeros(8), p + v * dt, np.array([1.0, 0, 0, 0]), v, dt, 0.0))
+    curve = -np.degrees(np.arctan(14.4 * 7.0 / np.hypot(7.0, 1.62) / 9.81))
+    assert curve == pytest.approx(-55.0, abs=0.1)
+    assert np.degrees(tgt.asked[-1][3]) == pytest.approx(max(curve, -cap), abs=0.01)
+    for bad in (5.0, 85.0, float("nan")):
+        with pytest.raises(InputError, match="largest bank"):
+            PathTarget(Trim(np.zeros(8)), path, max_bank_deg=bad)
+    assert main(["eval", "--scenario", "sinusoid-sharp", "--max-bank", "90"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--max-bank must be 10..80 deg" in err and "\n" not in err
+
+
 def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
     from flapsim.bird.controller import Trim
     from flapsim.bird.path import PathTarget

@@ -78,3 +78,19 @@ def test_the_task_asks_the_doves_own_lead_unless_given(feathers, lead, monkeypat
         with pytest.raises(RuntimeError, match="seen"):
             tasks.fly_task(Task(path, feathers=feathers, bank_lead_s=given))
     assert seen == [lead, 0.05]
+
+
+def test_the_task_asks_the_path_targets_own_largest_bank_unless_given(monkeypatch):
+    seen = []
+
+    class Spy(tasks.PathTarget):
+        def __init__(self, *args, **kwargs):
+            seen.append(kwargs.get("max_bank_deg"))
+            raise RuntimeError("seen")
+
+    monkeypatch.setattr(tasks, "PathTarget", Spy)
+    for given in (None, 60.0):
+        with pytest.raises(RuntimeError, match="seen"):
+            tasks.fly_task(Task(s_curve(), max_bank_deg=given))
+    # None: the target's own (its dataclass default, 45 deg)
+    assert seen == [None, 60.0] and tasks.PathTarget.max_bank_deg == 45.0

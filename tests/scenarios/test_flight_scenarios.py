@@ -365,10 +365,14 @@ def test_eval_options_reach_every_flight(monkeypatch):
     monkeypatch.setattr(tasks_mod, "fly_task", lambda task, *a, **kw: seen.append(task))
     task = Task(straight(10.0))
     _fly_task(task, EvalOptions(), record=False)
-    _fly_task(task, EvalOptions(speed=5.5, bank_lead_s=0.1, aoa_per_g_deg=30.0), record=False)
-    assert (seen[0].speed, seen[0].bank_lead_s, seen[0].aoa_per_g_deg) == (7.0, None, None)
-    assert (seen[1].speed, seen[1].bank_lead_s, seen[1].aoa_per_g_deg) == (5.5, 0.1, 30.0)
-    assert dataclasses.replace(seen[1], speed=7.0, bank_lead_s=None, aoa_per_g_deg=None) == task
+    _fly_task(task, EvalOptions(speed=5.5, bank_lead_s=0.1, aoa_per_g_deg=30.0, max_bank_deg=60.0),
+              record=False)
+    assert (seen[0].speed, seen[0].bank_lead_s, seen[0].aoa_per_g_deg, seen[0].max_bank_deg) == (
+        7.0, None, None, None)
+    assert (seen[1].speed, seen[1].bank_lead_s, seen[1].aoa_per_g_deg, seen[1].max_bank_deg) == (
+        5.5, 0.1, 30.0, 60.0)
+    assert dataclasses.replace(seen[1], speed=7.0, bank_lead_s=None, aoa_per_g_deg=None,
+                               max_bank_deg=None) == task
 
 
 def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
@@ -379,10 +383,11 @@ def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
     from flapsim.scenarios import EvalOptions
 
     o = EvalOptions(k_dense=100, bank_lead_s=0.3, carry=0.4, aoa_per_g_deg=30.0, speed=6.0,
-                    turn_load_factor=1.25, climb_per_speed_deficit=0.1, refine=2)
+                    turn_load_factor=1.25, climb_per_speed_deficit=0.1, refine=2, max_bank_deg=60.0)
     _paper_protocol(o)
     assert (o.k_dense, o.bank_lead_s, o.carry, o.aoa_per_g_deg, o.speed, o.turn_load_factor,
-            o.climb_per_speed_deficit, o.refine) == (0, 0.0, 0.0, 0.0, None, 0.0, 0.0, 0)
+            o.climb_per_speed_deficit, o.refine, o.max_bank_deg) == (0, 0.0, 0.0, 0.0, None, 0.0,
+                                                                     0.0, 0, None)
 
 
 def test_wilsons_interval_is_its_closed_form():
