@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flapsim.scenarios import EvalOptions, Scenario, register
+from flapsim.scenarios import EvalOptions, Scenario, get, register
 
 PUSH_FORCES_N = (3.0, 6.0, 8.0, 10.0, 12.0)
 """The paper pushed with 3-12 N (its Fig. 16); it withstood up to 8 N."""
@@ -129,7 +129,7 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         path = shape(**args)
     task = Task(path, wind=tuple(p.get("wind", (0.0, 0.0, 0.0))), flow=_flow(p.get("flow", ())),
                 plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0),
-                feathers=opt.feathers, **({"speed": float(p["speed"])} if "speed" in p else {}))
+                feathers=opt.feathers, speed=float(p.get("speed", Task.speed)))
     r, files = _fly(sc, opt, task)
     geometry = path.geometry()
     extra = {"path_geometry": geometry.as_dict()}
@@ -412,9 +412,7 @@ def _register() -> None:
     register(Scenario("sinusoid-slow", "flight", "sinusoid-sharp's path flown at 5 m/s, the top of "
                       "the capture's 2.0-5.1 m/s: the steering range at the speeds the capture's "
                       "was measured at, flown and mirrored; not in 'all'", P,
-                      {"shape": "sinusoid", "args": {"amplitude_m": 3.0, "wavelength_m": 10.0},
-                       "quick_args": {"waves": 1.0}, "capture_steering_deg": True,
-                       "mirror_too": True, "speed": CAPTURE_TOP_SPEED},
+                      dict(get("sinusoid-sharp").params, speed=CAPTURE_TOP_SPEED),
                       cost=12.0, in_all=False))
     for d in ("front", "back", "left", "right", "up", "down"):
         register(Scenario(f"push-{d}", "flight", f"level flight pushed {d} at the trunk's centre of "
