@@ -1,6 +1,8 @@
 """Shared fixtures: every test leaves the process-wide passive callback clean; a
 virtual X display for the window tests."""
 
+import fcntl
+import os
 import shutil
 import subprocess
 import time
@@ -26,11 +28,29 @@ def _clean_dispatcher_after_module():
     DISPATCHER.clear()
 
 
-def _free_display() -> int:
-    for n in range(91, 190):
-        if not Path(f"/tmp/.X{n}-lock").exists() and not Path(f"/tmp/.X11-unix/X{n}").exists():
-            return n
-    raise RuntimeError("no free X display number in :91-:189")
+def _start_xvfb() -> tuple[subprocess.Popen, int]:
+    """Xvfb on a free display number in :91-:189. Choosing the number and starting the server
+    hold a lock file, so two test processes (``pytest -n 2``) never pick the same number.
+    (Xvfb's own ``-displayfd`` choice gave a display that VTK then could not connect to under
+    that load.)"""
+    with open("/tmp/flapsim-tests-xvfb.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            for n in range(91, 190):
+                if not Path(f"/tmp/.X{n}-lock").exists() and not Path(f"/tmp/.X11-unix/X{n}").exists():
+                    break
+            else:
+                raise RuntimeError("no free X display number in :91-:189")
+            proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            # the lock is held until the server has claimed the number
+            for _ in range(200):
+                if Path(f"/tmp/.X11-unix/X{n}").exists() or proc.poll() is not None:
+                    break
+                time.sleep(0.05)
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    return proc, n
 
 
 class XDisplay:
@@ -67,9 +87,7 @@ def xvfb_display():
     on it; skips the test when Xvfb or xdotool is not installed (.ci/run installs both)."""
     if shutil.which("Xvfb") is None or shutil.which("xdotool") is None:
         pytest.skip("Xvfb and xdotool are needed to open a window on a virtual display")
-    n = _free_display()
-    xvfb = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    xvfb, n = _start_xvfb()
     display = XDisplay(f":{n}")
     try:
         for _ in range(200):
@@ -79,8 +97,6 @@ def xvfb_display():
         assert Path(f"/tmp/.X11-unix/X{n}").exists(), "Xvfb did not start within 10 s"
         # the socket appears before the server takes clients: under load a window opened at
         # once got "bad X server connection"; wait until a client is answered
-        import os
-
         env = dict(os.environ, DISPLAY=f":{n}")
         for _ in range(100):
             ok = subprocess.run(["xdotool", "getdisplaygeometry"], env=env, capture_output=True,
