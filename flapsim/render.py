@@ -9,15 +9,17 @@ subsampled to the video rate) and a body to follow. The video is written atomica
 
 Known pitfall (measured here, mujoco 3.17 + VTK via pyvista): closing a pyvista
 offscreen window after a MuJoCo EGL renderer has run terminates the EGL display that
-MuJoCo shares, and every later ``mujoco.Renderer`` in that process fails (EGLError).
-Render MuJoCo videos before pyvista pictures in one process (``flapsim animate`` does),
-or use separate processes; flapsim's plots use matplotlib for this reason.
+MuJoCo shares, and every later ``mujoco.Renderer`` in that process failed (EGLError
+EGL_NOT_INITIALIZED). :func:`new_renderer` initializes MuJoCo's display again first
+(``eglInitialize`` on a live display changes nothing), so every renderer flapsim opens
+works after a pyvista picture; flapsim's plots use matplotlib all the same.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +30,20 @@ from flapsim.errors import InputError, SimulationError
 from flapsim.io import atomic_video
 
 log = logging.getLogger(__name__)
+
+
+def new_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+    """``mujoco.Renderer(model, height, width)``, after bringing MuJoCo's shared EGL display
+    back if something in this process terminated it (a closed VTK window does: see the module
+    doc). Errors are mujoco's own."""
+    egl = sys.modules.get("mujoco.egl")
+    display = getattr(egl, "EGL_DISPLAY", None)
+    if display is not None:
+        try:
+            egl.EGL.eglInitialize(display, None, None)
+        except Exception:  # noqa: BLE001 - PyOpenGL raises its own types; the renderer reports
+            log.debug("eglInitialize on MuJoCo's display failed", exc_info=True)
+    return mujoco.Renderer(model, height, width)
 
 
 @dataclass(frozen=True)
@@ -90,7 +106,7 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
         cam.distance = camera.distance
         cam.elevation = camera.elevation_deg
     try:
-        renderer = mujoco.Renderer(model, height, width)
+        renderer = new_renderer(model, height, width)
     except Exception as exc:  # noqa: BLE001 - GL setup errors come in many types
         raise SimulationError(f"offscreen rendering is unavailable ({type(exc).__name__}: {exc}); "
                               "set MUJOCO_GL=egl or osmesa before starting Python") from None

@@ -59,7 +59,9 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
     width = min(width, int(model.vis.global_.offwidth))
     height = min(height, int(model.vis.global_.offheight))
     try:
-        return mujoco.Renderer(model, height=height, width=width)
+        from flapsim.render import new_renderer
+
+        return new_renderer(model, height, width)
     except Exception as exc:  # GL backends raise assorted types
         raise ModelError(
             f"cannot open an offscreen renderer ({exc}); set MUJOCO_GL=egl or osmesa "

@@ -363,7 +363,9 @@ def swim(
     frames: list[np.ndarray] = []
     frame_every = 0
     if video_fps > 0:
-        renderer = mujoco.Renderer(m, *video_size)
+        from flapsim.render import new_renderer
+
+        renderer = new_renderer(m, *video_size)
         frame_every = max(1, int(round(1.0 / (video_fps * dt))))
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
