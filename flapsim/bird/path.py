@@ -276,7 +276,8 @@ class PathTarget:
     ki_altitude: float = 0.15
     """Climb rate asked per metre-second of height error below the path, 1/s^2."""
     max_bank_deg: float = 45.0
-    """Largest bank asked, deg."""
+    """Largest bank asked, deg (tasks ask the dove's default,
+    :data:`~flapsim.bird.tasks.DEFAULT_MAX_BANK_DEG`: 60 for the rigid dove)."""
     bank_lead_s: float = 0.3
     """The bank asked is the recovery curve's this long after the wingbeat's end, s (0: at
     its end, the paper's). The learned controller delivers only part of a roll change per

@@ -109,6 +109,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         default_aoa_per_g,
         default_bank_lead,
         default_climb_per_speed_deficit,
+        default_max_bank,
     )
 
     # a gust primitive that is inert (zero amplitude) until Delete re-packs it in place
@@ -125,7 +126,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             target = PathTarget(trim, path, speed=cmd.speed,
                                 aoa_per_g_deg=default_aoa_per_g(feathers),
                                 bank_lead_s=default_bank_lead(feathers),
-                                climb_per_speed_deficit=default_climb_per_speed_deficit(feathers))
+                                climb_per_speed_deficit=default_climb_per_speed_deficit(feathers),
+                                max_bank_deg=default_max_bank(feathers))
         else:
             start_cruise(fl, ctl.P0, cfg)
             target = CruiseTarget(trim, altitude=cfg.height, speed=cmd.speed)

@@ -82,9 +82,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="neighbours (default: 2%% of the samples searched for lwlr, 0.5%% for knn)")
     add_regression_arguments(p)
     p.add_argument("--max-bank", type=float, default=None, metavar="DEG",
-                   help="flight: the largest bank the path target asks, 10..80 deg (default 45; "
-                        "the paper gives none; 60: sinusoid-sharp steers wider than the capture "
-                        "set on both sides, see the README)")
+                   help="flight: the largest bank the path target asks, 10..80 deg (default 60 "
+                        "for the rigid dove, 45 with modal feathers; the paper gives none; at 45 "
+                        "sinusoid-sharp steers no wider than the capture set to the right, see "
+                        "the README)")
     p.add_argument("--bank-lead", type=float, default=None, metavar="S",
                    help="flight: the path target asks the bank its recovery curve has S seconds "
                         "after the wingbeat's end (default 0.2 for the rigid dove, 0.3 with modal "
