@@ -55,7 +55,7 @@ DEFAULT_CLIMB_PER_SPEED_DEFICIT = {"rigid": 0.0, "modal": 0.0}
 #: The largest bank the path target asks, deg, per dove
 #: (:attr:`~flapsim.bird.path.PathTarget.max_bank_deg`; docs/flight_log.md, "A 60 deg bank by
 #: default (session 26)"): 60 for the rigid dove since session 26. Over starts under 1 mm/s
-#: apart it steers the sharp sinusoid wider than the capture on both sides in 9 of 10 (45 deg:
+#: apart it steers the sharp sinusoid wider than the capture on both sides in 15 of 20 (45 deg:
 #: 1 of 10), and the rest holds within the counts' noise: the ten user paths 265 of 300 against
 #: 268 over three draws, the level and 15 deg climbing circles 8 and 6 of 10 against 9 and 6,
 #: the whole suite's verdicts and the figure of eight's metrics unchanged. Modal feathers keep
