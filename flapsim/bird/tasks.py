@@ -267,10 +267,19 @@ class TaskResult:
     lookahead: tuple[int, int] | None = None
     """With the controller's look-ahead (:mod:`flapsim.bird.lookahead`): the wingbeats whose
     reference it had simulated ahead, and those simulated on the spot; None without one."""
+    path_target: dict | None = None
+    """The path target's settings as flown (:data:`PATH_TARGET_SETTINGS`: the dove's defaults
+    resolved), so a result says what it was asked under."""
 
     @property
     def ok(self) -> bool:
         return self.status == "completed"
+
+
+#: The :class:`~flapsim.bird.path.PathTarget` settings a :class:`TaskResult` records.
+PATH_TARGET_SETTINGS = ("speed", "max_bank_deg", "bank_lead_s", "aoa_per_g_deg",
+                        "climb_per_speed_deficit", "turn_load_factor", "turn_speed_floor",
+                        "lookahead_s", "max_climb_deg")
 
 
 def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None, mirror: bool = True,
@@ -340,6 +349,7 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         r.refine = getattr(ctl, "refine", None)
         r.refine_goal = getattr(ctl, "refine_goal", None)
         r.lookahead = None if la is None else (la.hits - before[0], la.misses - before[1])
+        r.path_target = {k: float(getattr(target, k)) for k in PATH_TARGET_SETTINGS}
         return r
     finally:
         if own:

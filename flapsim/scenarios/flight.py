@@ -50,6 +50,8 @@ def _summary(r) -> dict:
     if getattr(r, "refine", None) is not None:
         out["refine"] = r.refine  # the controller's simulated corrections per wingbeat
         out["refine_goal"] = getattr(r, "refine_goal", None)
+    if getattr(r, "path_target", None):
+        out["path_target"] = r.path_target  # the path target's settings, the dove's defaults resolved
     if getattr(r, "lookahead", None) is not None:
         # references simulated ahead on the second core, and on the spot (wall time only)
         out["lookahead_hits"], out["lookahead_misses"] = r.lookahead
