@@ -560,7 +560,8 @@ def _paper_protocol(o) -> None:
     """Table I's runs fly the paper's controller whatever else was asked: k fixed (the sweep is
     over k itself), the bank of the wingbeat's end, P0 every wingbeat, the trim's angle of
     attack in turns, the speed asked everywhere, independent speed and height loops and the
-    regression's answer flown as it is, with the bank cap every Table I run so far had."""
+    regression's answer flown as it is, with the dove's default bank cap (Table I's figure of
+    eight flies the same at 45 and 60 deg: docs/flight_log.md, "A 60 deg bank by default")."""
     o.k_dense, o.bank_lead_s, o.carry, o.refine, o.max_bank_deg = 0, 0.0, 0.0, 0, None
     o.aoa_per_g_deg, o.speed, o.turn_load_factor, o.climb_per_speed_deficit = 0.0, None, 0.0, 0.0
 

@@ -94,7 +94,8 @@ class EvalOptions:
     speed: float | None = None
     """Flight: the speed asked of every flight, m/s (None: each task's own, 7)."""
     max_bank_deg: float | None = None
-    """Flight: the largest bank the path target asks, deg (None: its own, 45)."""
+    """Flight: the largest bank the path target asks, deg (None: the dove's default,
+    :data:`flapsim.bird.tasks.DEFAULT_MAX_BANK_DEG`: 60 rigid, 45 modal)."""
     aoa_per_g_deg: float | None = None
     """Flight: the path target asks this much more angle of attack per g of a turn's load
     factor, deg (None: the dove's default, :data:`flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG`)."""
