@@ -195,6 +195,24 @@ class PathGeometry:
                 "max_descent_deg": self.max_descent_deg}
 
 
+def _point(path: Path, where: str, item) -> list[float]:
+    """One path point (x, y, z) from a CSV row or a JSON item, or a one-line error naming it."""
+    if isinstance(item, str) or not isinstance(item, (list, tuple)) or len(item) != 3:
+        n = len(item) if isinstance(item, (list, tuple)) else None
+        got = f"{n} values" if n is not None else repr(item)[:40]
+        raise DataFileError(f"path file {path}: {where} must be 3 numbers x, y, z, got {got}")
+    out = []
+    for c in item:
+        try:
+            if isinstance(c, bool):
+                raise ValueError
+            out.append(float(c.strip() if isinstance(c, str) else c))
+        except (TypeError, ValueError):
+            raise DataFileError(f"path file {path}: {where}: {str(c)[:20]!r} is not a number "
+                                "(metres)") from None
+    return out
+
+
 def load_path(path: str | Path) -> FlightPath:
     """A path from a CSV (header ``x,y,z``) or JSON file, with one-line errors."""
     path = Path(path)
@@ -214,13 +232,18 @@ def load_path(path: str | Path) -> FlightPath:
             data = json.loads(text)
             if isinstance(data, dict):
                 data = data.get("points")
-            pts = np.array(data, dtype=float)
+            if not isinstance(data, list):
+                raise DataFileError(f"path file {path}: expected a JSON list of [x, y, z] points "
+                                    "(or {\"points\": [...]})")
+            pts = np.array([_point(path, f"point {i + 1}", p) for i, p in enumerate(data)],
+                           dtype=float).reshape(-1, 3)
         else:
             rows = list(csv.reader(io.StringIO(text)))
-            rows = [r for r in rows if r and any(c.strip() for c in r)]
-            if not rows or [c.strip().lower() for c in rows[0]] != ["x", "y", "z"]:
+            numbered = [(i + 1, r) for i, r in enumerate(rows) if r and any(c.strip() for c in r)]
+            if not numbered or [c.strip().lower() for c in numbered[0][1]] != ["x", "y", "z"]:
                 raise DataFileError(f"path file {path}: the first row must be the header x,y,z")
-            pts = np.array([[float(c) for c in r] for r in rows[1:]], dtype=float)
+            pts = np.array([_point(path, f"line {i}", r) for i, r in numbered[1:]],
+                           dtype=float).reshape(-1, 3)
     except DataFileError:
         raise
     except (ValueError, TypeError, json.JSONDecodeError) as exc:

@@ -51,6 +51,25 @@ def test_path_files_load_and_bad_ones_get_one_line_errors(tmp_path):
         load_path(tmp_path / "missing.csv")
 
 
+
+def test_a_bad_point_is_named_by_its_line_or_index(tmp_path):
+    # the message says where the file is wrong: the CSV's line (blank lines counted, as an
+    # editor counts them) or the JSON list's point, 1-based
+    cases = {
+        "short.csv": (b"x,y,z\n0,0,0\n\n1,2\n", "line 4 must be 3 numbers x, y, z, got 2 values"),
+        "word.csv": (b"x,y,z\n0,0,0\n1,abc,0\n", "line 3: 'abc' is not a number"),
+        "short.json": (b"[[0,0,0],[1,2]]", "point 2 must be 3 numbers x, y, z, got 2 values"),
+        "word.json": (b'[[0,0,0],[1,2,"q"]]', "point 2: 'q' is not a number"),
+        "flag.json": (b"[[0,0,0],[1,true,2]]", "point 2: 'True' is not a number"),
+        "object.json": (b'{"a": 1}', "expected a JSON list"),
+    }
+    for name, (content, message) in cases.items():
+        f = tmp_path / name
+        f.write_bytes(content)
+        with pytest.raises(DataFileError) as e:
+            load_path(f)
+        assert message in str(e.value) and "\n" not in str(e.value), str(e.value)
+
 def test_spline_passes_through_the_points_and_measures_length():
     # two points: a straight segment; its length and closest points are elementary
     p = FlightPath(np.array([[0.0, 0, 10], [30.0, 40, 10]]))
