@@ -41,7 +41,7 @@ from flapsim.bird.database import (
     finalize_database,
     load_database,
 )
-from flapsim.errors import InputError
+from flapsim.errors import DataFileError, InputError
 from flapsim.parallel import BACKENDS, ChunkExecutor
 
 log = logging.getLogger(__name__)
@@ -164,7 +164,13 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
     ident = run_header(config, worker_cls, kind)
     existing = None
     if out.exists():
-        existing = load_database(out)  # a foreign or damaged file: DataFileError here
+        try:
+            existing = load_database(out)
+        except DataFileError as exc:
+            # a foreign or damaged file is never overwritten: say so, and what to do
+            what = str(exc).split("; ")[0]  # the database's own advice is for reading it
+            raise DataFileError(f"--out: {what}, so it cannot be resumed; it is left as it is: "
+                                "choose another --out, or delete it to start afresh") from None
         _check_same_run(existing.header, ident, out)
         cs = existing.header.get("chunk_size")
         if existing.finalized:

@@ -92,9 +92,14 @@ def test_resume_refuses_another_run(tmp_path):
         assert "another --out" in str(e.value)
     with pytest.raises(InputError, match="another model"):  # the same config, a new model
         train(CFG, path, N, _OtherModel, progress=False, kind="flapsim-samples")
-    (tmp_path / "pic.db").write_bytes(b"\x89PNG\r\n\x1a\n....")
-    with pytest.raises(DataFileError, match="not a flapsim database"):
+    pic = b"\x89PNG\r\n\x1a\n...."
+    (tmp_path / "pic.db").write_bytes(pic)
+    with pytest.raises(DataFileError) as e:
         train(CFG, tmp_path / "pic.db", N, FakeWorker, progress=False)
+    # the message names the file as foreign and says what to do; the file is untouched
+    msg = str(e.value)
+    assert "not a flapsim database" in msg and "another --out" in msg and "\n" not in msg
+    assert (tmp_path / "pic.db").read_bytes() == pic
 
 
 class _InterruptAfter:
