@@ -11,12 +11,16 @@ edge, or beyond it.
 
     PYTHONPATH=. python scripts/dove_verdict_spread.py NAME[,NAME...]|user [--n 10]
         [--jitter 0.001] [--workers 2] [--refine-goal full|reachable] [--set NAME=VALUE ...]
-        [--json out.json]
+        [--patch FILE.py ...] [--json out.json]
 
 NAME: a path scenario (``flapsim eval --list``: figure8*, sinusoid*, climb-turn-*, plucked-*,
 wind-*) or one of :data:`flapsim.bird.paths.USER_PATHS` (``user``: all ten). The draws are
 reproducible (``--seed``); the first start is the unperturbed one. About half a run's flight
 time per run on 2 workers.
+
+``--patch FILE.py`` runs that file in every worker before its first flight: an experiment that
+changes the package's behaviour without changing the package (the patches behind the flight
+log's "Tried, not kept" entries are in ``scripts/experiments/``).
 """
 
 from __future__ import annotations
@@ -28,9 +32,22 @@ import time
 from flapsim.bird.paths import USER_PATHS
 from flapsim.io import write_json
 
+_PATCHED: set[str] = set()
 
-def _fly(job: tuple[str, float, dict]) -> dict:
-    name, dv, options = job
+
+def _apply_patches(patches: tuple[str, ...]) -> None:
+    """Run each patch file once in this process (a pool worker flies many jobs)."""
+    import runpy
+
+    for path in patches:
+        if path not in _PATCHED:
+            runpy.run_path(path, run_name="flapsim_patch")
+            _PATCHED.add(path)
+
+
+def _fly(job: tuple[str, float, dict, tuple[str, ...]]) -> dict:
+    name, dv, options, patches = job
+    _apply_patches(patches)
     from flapsim import scenarios
 
     # the start's forward speed changed by dv: the speed, not the direction
@@ -73,6 +90,9 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="an evaluation option (flapsim.scenarios.EvalOptions), e.g. "
                          "bank_lead_s=0.4, carry=0.3, refine=3, db=seed1.db; repeatable")
+    ap.add_argument("--patch", action="append", default=[], metavar="FILE.py",
+                    help="run this Python file in every worker before it flies (an experiment's "
+                         "change to the package); repeatable")
     ap.add_argument("--json")
     a = ap.parse_args()
     options: dict = {"refine_goal": a.refine_goal}
@@ -90,7 +110,14 @@ def main() -> None:
         if sc.family != "flight" or sc.runner.__name__ != "run_path":
             raise SystemExit(f"{name}: not a path scenario (see the module docstring)")
     dvs = scenarios.start_speed_changes(a.n, a.jitter, a.seed)  # as flapsim eval --starts draws
-    jobs = [(name, float(dv), options) for name in names for dv in dvs]
+    from pathlib import Path
+
+    patches = []
+    for f in a.patch:
+        if not Path(f).is_file():
+            raise SystemExit(f"--patch {f}: no such file")
+        patches.append(str(Path(f).resolve()))
+    jobs = [(name, float(dv), options, tuple(patches)) for name in names for dv in dvs]
     t0 = time.perf_counter()
     with mp.get_context("spawn").Pool(a.workers) as pool:
         rows = pool.map(_fly, jobs, chunksize=1)
@@ -109,7 +136,7 @@ def main() -> None:
     if a.json:
         write_json(a.json, {"scenarios": names, "jitter_m_s": a.jitter, "seed": a.seed,
                             "completed": counts, "runs": rows, "wall_s": wall,
-                            "options": options})
+                            "options": options, "patches": patches})
 
 
 if __name__ == "__main__":
