@@ -197,9 +197,8 @@ class PathGeometry:
 
 def _point(path: Path, where: str, item) -> list[float]:
     """One path point (x, y, z) from a CSV row or a JSON item, or a one-line error naming it."""
-    if isinstance(item, str) or not isinstance(item, (list, tuple)) or len(item) != 3:
-        n = len(item) if isinstance(item, (list, tuple)) else None
-        got = f"{n} values" if n is not None else repr(item)[:40]
+    if not isinstance(item, (list, tuple)) or len(item) != 3:
+        got = f"{len(item)} values" if isinstance(item, (list, tuple)) else repr(item)[:40]
         raise DataFileError(f"path file {path}: {where} must be 3 numbers x, y, z, got {got}")
     out = []
     for c in item:
