@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import multiprocessing as mp
 import time
+from pathlib import Path
 
 from flapsim.bird.paths import USER_PATHS
 from flapsim.io import write_json
@@ -110,8 +111,6 @@ def main() -> None:
         if sc.family != "flight" or sc.runner.__name__ != "run_path":
             raise SystemExit(f"{name}: not a path scenario (see the module docstring)")
     dvs = scenarios.start_speed_changes(a.n, a.jitter, a.seed)  # as flapsim eval --starts draws
-    from pathlib import Path
-
     patches = []
     for f in a.patch:
         if not Path(f).is_file():

@@ -168,9 +168,8 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
             existing = load_database(out)
         except DataFileError as exc:
             # a foreign or damaged file is never overwritten: say so, and what to do
-            what = str(exc).split("; ")[0]  # the database's own advice is for reading it
-            raise DataFileError(f"--out: {what}, so it cannot be resumed; it is left as it is: "
-                                "choose another --out, or delete it to start afresh") from None
+            raise DataFileError(f"--out cannot be resumed: {exc}. It is left as it is: choose "
+                                "another --out, or delete it to start afresh") from None
         _check_same_run(existing.header, ident, out)
         cs = existing.header.get("chunk_size")
         if existing.finalized:

@@ -51,7 +51,6 @@ def test_path_files_load_and_bad_ones_get_one_line_errors(tmp_path):
         load_path(tmp_path / "missing.csv")
 
 
-
 def test_a_bad_point_is_named_by_its_line_or_index(tmp_path):
     # the message says where the file is wrong: the CSV's line (blank lines counted, as an
     # editor counts them) or the JSON list's point, 1-based
@@ -69,6 +68,7 @@ def test_a_bad_point_is_named_by_its_line_or_index(tmp_path):
         with pytest.raises(DataFileError) as e:
             load_path(f)
         assert message in str(e.value) and "\n" not in str(e.value), str(e.value)
+
 
 def test_spline_passes_through_the_points_and_measures_length():
     # two points: a straight segment; its length and closest points are elementary
