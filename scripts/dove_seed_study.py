@@ -1,6 +1,7 @@
 """How much the database's random draw matters: train databases alike with several seeds (the
 bundled command, ``--seed N``; kept in ``--cache``, resumable) and fly the whole flight suite
-with each, printing the README's per-seed table.
+with each, printing a table per seed (docs/flight_log.md, "How much the database's
+random draw matters").
 
     PYTHONPATH=. python scripts/dove_seed_study.py --seeds 1-8 [--cache seed_dbs] [--json out.json]
         [--eval-args "--k 100 --bank-lead 0"] [--quick] [--feathers modal]

@@ -192,7 +192,7 @@ class Regressor:
     far as for the sparsest 75 % to ``k``, and between the two to a geometric blend of the
     counts. Cruise and path following ask for changes the samples crowd around, where few
     neighbours follow them closely; a push or a sharp turn asks for one among sparse
-    samples, where many neighbours keep the fit steady (measured, see the README).
+    samples, where many neighbours keep the fit steady (measured, see docs/flight.md).
 
     ``clip_request`` q > 0: each component of a requested dS is first clipped to the
     [q, 1 - q] quantiles of the database's dS. A local (LWLR) model holds only where its

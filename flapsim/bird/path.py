@@ -303,7 +303,7 @@ class PathTarget:
     bank_lead_s: float = 0.3
     """The bank asked is the recovery curve's this long after the wingbeat's end, s (0: at
     its end, the paper's). The learned controller delivers only part of a roll change per
-    wingbeat (about half of it, README), so a bank asked for the wingbeat's end arrives late
+    wingbeat (about half of it), so a bank asked for the wingbeat's end arrives late
     and the path loop overshoots: pushed 8 N sideways, the bundled database's dove swung
     across the path in growing arcs (rolls of +-60 deg) and was lost; asking ahead it returned
     to the path. Eight databases, the whole suite: 0.2 s, 0.3 s and 0.4 s against none

@@ -85,7 +85,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="flight: the largest bank the path target asks, 10..80 deg (default 60 "
                         "for the rigid dove, 45 with modal feathers; the paper gives none; at 45 "
                         "sinusoid-sharp steers no wider than the capture set to the right, see "
-                        "the README)")
+                        "docs/flight.md)")
     p.add_argument("--bank-lead", type=float, default=None, metavar="S",
                    help="flight: the path target asks the bank its recovery curve has S seconds "
                         "after the wingbeat's end (default 0.2 for the rigid dove, 0.3 with modal "
@@ -94,11 +94,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speed", type=float, default=None, metavar="M_S",
                    help="flight: the speed asked of every flight, m/s (default 7, the paper's; the "
                         "bundled database was sampled at 7: slower flight needs a database sampled "
-                        "there, see the README)")
+                        "there, see docs/flight.md)")
     p.add_argument("--aoa-per-g", type=float, default=None, metavar="DEG",
                    help="flight: the path target asks DEG more angle of attack per g of a turn's "
                         "load factor (default 40 for rigid feathers, 0 for modal ones; 0: the "
-                        "paper's; see the README)")
+                        "paper's; see docs/flight.md)")
     p.add_argument("--speed-first", type=float, default=None, metavar="K",
                    help="flight: the climb asked drops K rad per m/s of airspeed below the speed "
                         "asked (default 0: independent speed and height loops, the paper's; "
@@ -592,7 +592,7 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     cache = Path(_dir("--cache", args.cache))
     cache.mkdir(exist_ok=True)
     # the bundled database's sampling (phase 1, pre-states within 10 deg) and, unless asked
-    # otherwise, its seed: one draw of the databases, whose spread the README measures
+    # otherwise, its seed: one draw of the databases, whose spread docs/flight_log.md measures
     seed = (args.table1_seed if getattr(args, "table1_seed", None) is not None
             else _bundled_seed(opts.feathers))
     config = SamplingConfig(seed=seed, pitch_deg=10.0, roll_deg=10.0, feathers=opts.feathers)

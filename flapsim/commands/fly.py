@@ -21,36 +21,36 @@ def add_regression_arguments(p: argparse.ArgumentParser) -> None:
                    help="LWLR's neighbours where a request lies among densely packed samples, "
                         "growing to --k where they are sparse (default: 0.5%% of the samples "
                         "searched for rigid feathers, off for modal ones; 0: always --k, the "
-                        "paper's fixed neighbourhood; see the README)")
+                        "paper's fixed neighbourhood; see docs/flight.md)")
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="the regression searches the database's samples only, not also their mirror "
                         "images (the default searches both: the dove is symmetric)")
     p.add_argument("--clip-request", type=float, default=0.02, metavar="Q",
                    help="the regression clips each component of a requested state change to the "
                         "[Q, 1-Q] quantiles of the database's (default 0.02; 0: no clip, the paper's): "
-                        "a request far outside the samples is otherwise extrapolated (see the README)")
+                        "a request far outside the samples is otherwise extrapolated (see docs/flight.md)")
     p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
                    help="the regression chooses neighbours by dS and, with weight W, by the "
                         "wingbeat's start state (default 0: dS only, the paper's; for databases "
-                        "that mix cruise and disturbed pre-states, see the README)")
+                        "that mix cruise and disturbed pre-states, see docs/flight.md)")
     p.add_argument("--carry", type=float, default=None, metavar="C",
                    help="share of the last wingbeat's change from the reference wingbeat that the "
                         "next one starts from (default 0.4 for rigid feathers, 0 for modal ones; "
-                        "0: the reference every wingbeat, the paper's; see the README)")
+                        "0: the reference every wingbeat, the paper's; see docs/flight.md)")
     p.add_argument("--refine", type=int, default=None, metavar="N",
                    help="simulate the regression's wingbeat before flying it and, where it would "
                         "end short of the target, ask again for the shortfall, N times; the wingbeat "
-                        "that ends nearest the target is flown (default: the dove's, see the README; "
+                        "that ends nearest the target is flown (default: the dove's, see docs/flight.md; "
                         "0: flown as answered, the paper's). Each costs one wingbeat's simulation")
     p.add_argument("--refine-goal", choices=("reachable", "full"), default=None,
                    help="what --refine's corrections aim at and rank by: the target itself "
                         "(full, the default) or the target with each change clipped as "
-                        "--clip-request clips the request (reachable; measured in the README)")
+                        "--clip-request clips the request (reachable; measured in docs/flight.md)")
     p.add_argument("--lookahead", choices=("auto", "on", "off"), default="auto",
                    help="simulate the next wingbeat's reference wingbeat in a second thread while "
                         "--refine's corrections run: the same flight to the bit, ~1.2x faster on two "
                         "free cores (auto, the default: where it can and two cores are free; for "
-                        "'flapsim eval' only when the runs leave a core per run free; see the README)")
+                        "'flapsim eval' only when the runs leave a core per run free; see docs/flight.md)")
     p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
                    help="how the learned controller finds S0, where the reference wingbeat would "
                         "end: simulate it every wingbeat (default; the paper), simulate it at a "
@@ -77,7 +77,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
                    help="regression of the learned controller: lwlr (default; locally weighted "
                         "linear regression) or knn (the paper's k-NN average, which does not hold "
-                        "this dove level: see the README)")
+                        "this dove level: see docs/flight.md)")
     p.add_argument("--k", type=int, default=None,
                    help="neighbours of the regression (default: 2%% of the samples searched for "
                         "lwlr, 0.5%% for knn)")

@@ -83,7 +83,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--table", default=None, metavar="NAME",
                    help="phase 1: the feather coefficient table the samples are flown with (default "
                         "dickinson1999_profile; dove_revolving: fitted to revolving dove wings, see "
-                        "the README); the database's controller flies with it")
+                        "docs/flight.md); the database's controller flies with it")
     p.add_argument("--tail-bias-deg", type=float, default=None,
                    help="phase 1: tail bend added to the reference wingbeat, deg (default 17, the "
                         "paper's)")

@@ -265,8 +265,8 @@ def dove_revolving(cd0: float = 0.05) -> CoefficientTable:
     ratio, within Withers's 0.2-0.8), blended linearly in angle into the scaled normal-force
     drag of :func:`dickinson1999_profile` at 90 deg. Checks against the data not fitted:
     L/D 0.94 at 66 deg (Crandell & Tobalske: 0.91 for the upstroke wing) and a peak L/D of
-    5.5 at 10 deg (6.3). NOT the default (see the README, "Flapping flight"): with it the reference
-    wingbeat out-pulls its drag by ~0.28 of the weight.
+    5.5 at 10 deg (6.3). NOT the default (see docs/flight.md, "Flapping flight (the dove)"):
+    with it the reference wingbeat out-pulls its drag by ~0.28 of the weight.
     """
     base = dickinson1999_profile(cd0)
     half = (N_SAMPLES + 1) // 2

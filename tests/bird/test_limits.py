@@ -28,7 +28,7 @@ def test_turn_radius_closed_form():
     assert turn_radius(0.8, 7.0) == math.inf
     for r, v in ((3.0, 5.0), (3.6, 7.0), (10.0, 8.0)):
         assert turn_radius(load_factor_for_radius(r, v), v) == pytest.approx(r, rel=1e-12)
-    # the paper's 3.6 m circle at 7 m/s: a 54 deg bank (README), n = 1 / cos(bank)
+    # the paper's 3.6 m circle at 7 m/s: a 54 deg bank, n = 1 / cos(bank)
     bank = math.degrees(math.acos(1.0 / load_factor_for_radius(3.6, 7.0)))
     assert bank == pytest.approx(math.degrees(math.atan(49.0 / (GRAVITY * 3.6))), abs=1e-9)
     with pytest.raises(InputError):

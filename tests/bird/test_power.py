@@ -109,7 +109,7 @@ def test_the_quick_balance_matches_the_budget():
 def test_the_quick_balance_turns_mirror_wingbeats_the_mirror_way():
     # the heading it reports (the centre of mass's velocity, + left): a symmetric wingbeat on
     # the symmetric dove from a level start does not turn, and a wingbeat and its mirror image
-    # turn by equal and opposite angles (the model is mirror-exact: README's mirror starts);
+    # turn by equal and opposite angles (the model is mirror-exact: docs/flight.md's mirror starts);
     # 1e-6 deg is float noise over three wingbeats, against the several degrees turned
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import DOF_NAMES, Dove

@@ -89,7 +89,7 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
     # = 2.67 m/s (still air: 0)
     assert s["max_wind_m_s"] > 2.5, s
     # it turned left (+): the keys came ~1-2 s before the end of 3 s; straight flight under the
-    # same controller holds its heading within ~2 deg (README), so > 5 deg is the command's doing
+    # same controller holds its heading within ~2 deg (docs/flight.md), so > 5 deg is the command's doing
     assert s["heading_change_deg"] > 5.0, s
     # the tracking camera keeps the dove in the middle of the window: the central quarter has
     # bird-coloured pixels, the window's lower corners (empty ground) none

@@ -307,7 +307,7 @@ def test_the_modal_dove_survives_an_8_newton_push_backwards():
     """The modal-feather dove under its bundled database, pushed back (against its flight) by
     8 N for 0.1 s (0.8 N s: 4.7 m/s taken from its 7) on the push scenarios' 60 m path,
     survives by their criterion: within the 10 m tube, the path's end reached, back within
-    1.5 m of it. (The rigid dove's bundled database does not survive it: README.) The end's
+    1.5 m of it. (The rigid dove's bundled database does not survive it: docs/flight.md.) The end's
     distance is near that 1.5 m on some starts (session 23, seven starts under 1 mm/s apart on
     an Intel Xeon: 0.91-1.48 m), so it is asserted over three starts' median; the tube and
     the path's end on every one."""
