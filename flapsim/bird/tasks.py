@@ -74,6 +74,21 @@ REFERENCE_PERIOD_S = 0.1075
 #: tube left, a fall or a collision; the clock only catches a bird that stops making way.
 WING_LOAD_FACTOR = 1.23
 
+#: The most lift the rigid dove's wing holds at constant speed, in g, by speed in m/s (the same
+#: study's table: 96 wingbeats around P0 within the joint ranges in free flight, flown in the
+#: fixed-trunk tunnel at trunk pitches of 0-20 deg). Slower flight frees lift: a faster beat.
+WING_LOAD_FACTOR_BY_SPEED = {5.0: 1.35, 6.0: 1.39, 7.0: 1.23, 8.0: 1.23}
+
+
+def wing_load_factor(speed: float) -> float | None:
+    """The most lift the rigid dove's wing holds at constant ``speed`` (m/s), in g: the
+    :data:`WING_LOAD_FACTOR_BY_SPEED` table interpolated linearly; None outside the 5-8 m/s
+    it was measured over."""
+    v = np.array(sorted(WING_LOAD_FACTOR_BY_SPEED))
+    if not (np.isfinite(speed) and v[0] <= speed <= v[-1]):
+        return None
+    return float(np.interp(speed, v, [WING_LOAD_FACTOR_BY_SPEED[s] for s in v]))
+
 #: The slowest average way (m/s along the path) the clock accepts: a task allows at least its
 #: path's length at this speed. Climbing pigeons fly 2.9-4.9 m/s (Berg & Biewener 2008, J Exp
 #: Biol 211:1120), and the dove, short of power on a climb, slows as they do: on 80 m at 7 deg

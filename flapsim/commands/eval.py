@@ -452,6 +452,17 @@ def _fmt(v, digits: int = 3) -> str:
     return str(v)
 
 
+def _beyond_wing(m: dict) -> str:
+    """Where a path's held turn asks more lift than the wing holds at the speed asked, say so:
+    the dove can follow it only by slowing into the turn, and near that limit it is lost from
+    some starts (docs/flight.md, "Flight tasks (issue #14): where they stand")."""
+    n = m.get("wing_load_factor")
+    if n is None or m["sustained_turn_load_factor"] <= n:
+        return ""
+    return (f"; the wing holds {n:.2f} g there, turns of {m['wing_min_turn_radius_m']:.1f} m and "
+            f"wider: the dove must slow into it")
+
+
 def print_table(results: list[dict]) -> None:
     """One row per run: the paper's per-wingbeat Ep, Er, Eo, Ef (flight), or the swimmer's
     distances to target, and the verdict."""
@@ -487,7 +498,8 @@ def print_table(results: list[dict]) -> None:
                 radius = "straight" if g["min_radius_m"] is None else f"radius >= {g['min_radius_m']:.1f} m"
                 if m.get("sustained_turn_load_factor") is not None:
                     radius += (f" (held over 2 m: {g['sustained_radius_m']:.1f} m, "
-                               f"{m['sustained_turn_load_factor']:.2f} g at {m['speed_asked']:g} m/s)")
+                               f"{m['sustained_turn_load_factor']:.2f} g at {m['speed_asked']:g} m/s"
+                               + _beyond_wing(m) + ")")
                 note = (f"{radius}, climbs <= {g['max_climb_deg']:.1f} deg, descents <= "
                         f"{g['max_descent_deg']:.1f} deg" + (f"; {note}" if note else ""))
                 if m.get("way_speed_m_s") is not None and m.get("speed_asked"):

@@ -145,6 +145,16 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         extra["sustained_turn_load_factor"] = float(
             np.hypot(1.0, v**2 / (GRAVITY * geometry.sustained_radius_m)))
         extra["speed_asked"] = float(v)
+        if opt.feathers == "rigid":
+            # what the wing holds there (measured for rigid feathers only): a path that asks
+            # more can be followed only by slowing into its turns
+            from flapsim.bird.limits import turn_radius
+            from flapsim.bird.tasks import wing_load_factor
+
+            n = wing_load_factor(v)
+            if n is not None:
+                extra["wing_load_factor"] = n
+                extra["wing_min_turn_radius_m"] = turn_radius(n, v)
     if "capture_steering_deg" in p:
         capture = capture_steering_range()
         extra["capture_steering_range_deg"] = capture

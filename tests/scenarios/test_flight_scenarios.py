@@ -532,6 +532,48 @@ def test_the_slow_sinusoid_flies_the_sharp_path_at_the_captures_speed(monkeypatc
     assert f"(capture -12.5..+7.0: {word})" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("radius, speed, feathers, slow", [
+    (3.0, None, "rigid", True), (25.0, None, "rigid", False), (3.0, 5.5, "rigid", True),
+    (4.0, 5.5, "rigid", False), (3.0, None, "modal", None)])
+def test_a_users_path_is_told_when_its_turn_asks_more_lift_than_the_wing_holds(
+        monkeypatch, capsys, tmp_path, radius, speed, feathers, slow):
+    # the flight is stubbed: this is the note's arithmetic. The wing holds 1.23 g at 7 m/s and
+    # 1.35 / 1.39 g at 5 / 6 m/s (scripts/dove_turn_limit.py), so at 5.5 m/s 1.37 g. A level
+    # circle of r held at v needs sqrt(1 + (v^2 / g r)^2): 3 m at 7 m/s 1.94 g and 25 m 1.09 g;
+    # at 5.5 m/s 3 m asks 1.45 g (over 1.37) and 4 m 1.30 g (under). The tightest turn the wing
+    # holds is v^2 / (g sqrt(n^2 - 1)): 7.0 m at 7 m/s (the study's 6.9 m, from n unrounded),
+    # 3.3 m at 5.5 m/s. Modal feathers were not measured: nothing is said.
+    from types import SimpleNamespace
+
+    from flapsim.commands.eval import print_table
+    from flapsim.scenarios import flight
+
+    monkeypatch.setattr(flight, "_fly", lambda sc, opt, task, tag="": (SimpleNamespace(
+        status="completed", ok=True, reason="", metrics={}), []))
+    a = np.linspace(0.0, 2 * np.pi, 49)
+    f = tmp_path / "c.csv"
+    np.savetxt(f, np.column_stack([radius * np.sin(a), radius * (1 - np.cos(a)), np.full(49, 10.0)]),
+               delimiter=",", header="x,y,z", comments="")
+    opt = scenarios.EvalOptions(path_file=str(f), speed=speed, feathers=feathers)
+    res = scenarios.get("path").runner(scenarios.get("path"), opt)
+    m = res["metrics"]
+    v = speed or 7.0
+    if slow is None:
+        assert "wing_load_factor" not in m
+    else:
+        n = {7.0: 1.23, 5.5: 1.37}[v]
+        assert m["wing_load_factor"] == pytest.approx(n, abs=1e-12)
+        assert m["wing_min_turn_radius_m"] == pytest.approx({7.0: 6.97, 5.5: 3.29}[v], abs=0.01)
+        # the natural spline bends tighter than the points' circle near its ends (held over
+        # 2 m: 2.9 m for 3 m, 21 m for 25 m), never wider
+        r = m["path_geometry"]["sustained_radius_m"]
+        assert 0.8 * radius < r <= 1.01 * radius
+        assert (m["sustained_turn_load_factor"] > n) == slow
+    print_table([{**res, "scenario": "path", "family": "flight"}])
+    out = capsys.readouterr().out
+    assert ("must slow into it" in out) == bool(slow), out
+
+
 def test_the_steering_in_the_tube_stops_where_the_bird_left_it():
     # a tube too narrow for the sharp sinusoid: the bird leaves it within a few wingbeats and
     # flies on; the range "in the tube" covers the wingbeats that ended within it, found here
