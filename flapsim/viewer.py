@@ -5,7 +5,10 @@ the window) with a camera tracking the animal's trunk, receives keys through a q
 key callback, which runs in the viewer's thread, only puts the key code there: the
 simulation loop reads and applies them, so no lock is shared with the physics), draws
 markers and paths as extra geoms, writes a text overlay, and paces the simulation to real
-time. ``Home`` switches between the tracking camera and MuJoCo's free camera.
+time. ``Home`` switches between the tracking camera and MuJoCo's free camera. A left
+double-click in the scene is MuJoCo's selection; :meth:`AnimalViewer.pending_clicks` hands
+the point clicked to the caller (the swimmer's viewer puts its target there, as the paper's
+user places it with the mouse).
 
 Needs a display (or Xvfb) and MuJoCo's GLFW backend: ``MUJOCO_GL`` unset or ``glfw``.
 Close it with :meth:`AnimalViewer.close` (leaving it to interpreter shutdown segfaulted).
@@ -33,6 +36,10 @@ KEY_NAMES = {KEY_INSERT: "Insert", KEY_DELETE: "Delete", KEY_RIGHT: "Right", KEY
              KEY_HOME: "Home", KEY_END: "End"}
 FRAME_S = 1.0 / 30.0
 """How often the view is refreshed, s of simulated time."""
+
+#: What the selection's local point is set to once a click is taken: MuJoCo writes a real
+#: point there on the next double-click on a geom (and leaves it on a click into the void)
+_NO_CLICK = np.full(3, 1e30)
 
 
 def check_display() -> None:
@@ -93,6 +100,7 @@ class AnimalViewer:
         # GLXBadDrawable, then a segfault or a hang)
         self._threads = [t for t in threading.enumerate() if t not in before]
         self._camera()
+        self._take_selection()
         self._t0_wall: float | None = None
         self._t0_sim = 0.0
         self.next_frame = 0.0
@@ -119,6 +127,31 @@ class AnimalViewer:
                 self._camera()
             out.append(k)
         return out
+
+    def pending_clicks(self) -> list[np.ndarray]:
+        """World points (m) double-clicked in the scene since the last call, at most one per
+        viewer sync. MuJoCo's viewer records a left double-click as a selection: the body
+        under the mouse and the point on it in the body's frame (the world's, for the pool's
+        surface or floor); the point is moved into the world with ``data``'s pose of that
+        body, and the selection is cleared, so the same spot clicked again counts again and
+        no body stays selected (nothing can be dragged by the mouse: a selected body is what
+        MuJoCo's Ctrl-drag would push)."""
+        point = self._take_selection()
+        return [] if point is None else [point]
+
+    def _take_selection(self) -> np.ndarray | None:
+        with self.handle.lock():
+            pert = self.handle.perturb
+            local = np.array(pert.localpos, float)
+            body = int(pert.select)
+            pert.select = 0
+            pert.localpos[:] = _NO_CLICK
+        if np.array_equal(local, _NO_CLICK) or not np.all(np.isfinite(local)):
+            return None
+        if not 0 <= body < self.model.nbody:
+            return None
+        rot = self.data.xmat[body].reshape(3, 3)
+        return self.data.xpos[body] + rot @ local
 
     @property
     def running(self) -> bool:

@@ -84,8 +84,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
     add_target_arguments(p)
     p.add_argument("--viewer", action="store_true",
-                   help="watch and steer in the MuJoCo viewer, in real time: arrow keys move the "
-                        "target (default 10 m ahead), PgUp/PgDn change the stroke rate, End "
+                   help="watch and steer in the MuJoCo viewer, in real time: a double-click "
+                        "places the target (default 10 m ahead), arrow keys move it 1 m, "
+                        "PgUp/PgDn change the stroke rate, End "
                         "switches the layers; needs a display")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default=None,
                    help="control layers (the paper's Fig. 2): basic = the stroke alone; cycle = "

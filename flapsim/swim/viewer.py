@@ -4,6 +4,9 @@
 paced to real time, with a red marker at the target the swimmer steers for (crawl or
 breaststroke; treading water stays in place). Keys:
 
+* double-click (left button) on the water, the pool or the swimmer: put the target
+  there (its x and y; a target under water keeps its depth), as the paper's user places it
+  with the mouse;
 * arrow keys: move the target 1 m (up/down: +x/-x, the start heading; left/right:
   +y/-y);
 * Page Up / Page Down: stroke rate x1.05 / /1.05;
@@ -59,6 +62,8 @@ class SwimViewer:
         d = swimmer.data
         for key in self.view.pending_keys():
             self._key(key, layer, float(d.time))
+        for point in self.view.pending_clicks():
+            self._click(point, swimmer, float(d.time))
         if d.time + 1e-9 < self.view.next_frame:
             return True
         self.view.next_frame = d.time + FRAME_S
@@ -81,15 +86,24 @@ class SwimViewer:
             stack.set_mode(nxt, t)
             self.events.append({"t": t, "key": key, "layers": nxt})
 
+    def _click(self, point: np.ndarray, swimmer: Swimmer, t: float) -> None:
+        # x and y only: a point on the swimmer or on the floor steers as the spot above it
+        self.target.x, self.target.y = round(float(point[0]), 2), round(float(point[1]), 2)
+        com = swimmer.com()
+        self.events.append({"t": t, "click": [float(point[0]), float(point[1]), float(point[2])],
+                            "target": [self.target.x, self.target.y],
+                            "swimmer": [float(com[0]), float(com[1])]})
+
     def _texts(self, swimmer: Swimmer, layer: BasicStrokeLayer) -> tuple[str, str]:
         com = swimmer.com()
         dist = float(np.hypot(self.target.x - com[0], self.target.y - com[1]))
         stack = getattr(layer, "stack", None)
         mode = stack.mode if stack is not None else "basic"
-        return ("stroke\nrate\nlayers\ntarget\ndistance\nkeys",
+        return ("stroke\nrate\nlayers\ntarget\ndistance\nkeys\n",
                 f"{layer.stroke.name}\n{layer.rate_hz:.2f} cycles/s\n{mode}\n"
                 f"({self.target.x:g}, {self.target.y:g}) m\n{dist:.1f} m\n"
-                "arrows: move target, PgUp/PgDn: rate, End: layers, Home: camera")
+                "double-click: place target, arrows: move it,\n"
+                "PgUp/PgDn: rate, End: layers, Home: camera")
 
     def close(self) -> None:
         """Close the window and wait until the viewer's thread is done."""

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from flapsim import cli
@@ -48,3 +49,40 @@ def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
     assert s["cycle_weights"] is not None  # the per-cycle layer ran after the switch
     # paced to real time: 8 simulated seconds took at least ~8 wall seconds
     assert s["seconds"] == pytest.approx(8.0, abs=0.05) and s["wall_s"] > 7.0
+
+
+def test_viewer_places_the_target_where_it_is_double_clicked_under_xvfb(tmp_path, xvfb_display):
+    # the paper's user places the target with the mouse. The tracking camera looks at the
+    # swimmer's centre from 3 m away, 15 deg above and from azimuth 30 deg (flapsim.viewer),
+    # so a double-click at the window's centre lands on the swimmer, or on the water along
+    # that bearing: past the swimmer while its centre is above the surface (at the start it
+    # floats high, ~0.4 m: 0.4 / tan 15 deg = 1.5 m past), short of it once under. Either
+    # way the target leaves 10 m ahead for a point within 3 m of the swimmer on the camera's
+    # line, and the swim's target is that point.
+    env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
+    out = tmp_path / "v.json"
+    app = xvfb_display.spawn(
+        [sys.executable, "-m", "flapsim.cli", "swim", "--viewer", "--stroke", "crawl",
+         "--seconds", "6", "--layers", "basic", "--json", str(out)], env)
+    window = xvfb_display.window(app, env, timeout=40)
+    geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", window], env=env,
+                         capture_output=True, text=True, check=True, timeout=10).stdout
+    size = dict(line.split("=") for line in geo.split() if "=" in line)
+    w, h = int(size["WIDTH"]), int(size["HEIGHT"])
+    subprocess.run(["xdotool", "mousemove", "--window", window, str(w // 2), str(h // 2),
+                    "click", "--repeat", "2", "--delay", "80", "1"], env=env, check=True, timeout=10)
+    log = app.communicate(timeout=90)[0].decode()
+    assert app.returncode == 0, log[-2000:]
+    s = json.loads(out.read_text())
+    clicks = [e for e in s["viewer"]["events"] if "click" in e]
+    assert len(clicks) == 1, s["viewer"]["events"]
+    c = clicks[0]
+    assert c["target"] == pytest.approx(c["click"][:2], abs=0.006)  # placed to the cm
+    dx, dy = c["click"][0] - c["swimmer"][0], c["click"][1] - c["swimmer"][1]
+    assert 0.1 < np.hypot(dx, dy) < 3.0 and abs(c["click"][2]) < 1.0, c
+    # the bearing is the camera's (or its reverse); the centre of mass is not quite the
+    # camera's look-at point (the thorax's subtree), hence 25 deg
+    bearing = np.degrees(np.arctan2(dy, dx))
+    assert min(abs((bearing - b + 180) % 360 - 180) for b in (30.0, 210.0)) < 25.0, (bearing, c)
+    assert s["viewer"]["final_target"] == c["target"]
+    assert [s["target"]["x_m"], s["target"]["y_m"]] == c["target"]
