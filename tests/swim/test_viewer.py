@@ -26,13 +26,19 @@ def test_viewer_without_a_display_is_a_one_line_error(monkeypatch, capsys):
     assert "viewer" in err and "MUJOCO_GL" in err and len(err.strip().splitlines()) == 1
 
 
-def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
+def _open_swim_viewer(xvfb_display, out: Path, seconds: float):
+    """``flapsim swim --viewer`` (crawl, basic layers, ``seconds`` paced to real time) on the
+    virtual display: (the process, its window, the environment it runs in)."""
     env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
-    out = tmp_path / "v.json"
     app = xvfb_display.spawn(
         [sys.executable, "-m", "flapsim.cli", "swim", "--viewer", "--stroke", "crawl",
-         "--seconds", "8", "--layers", "basic", "--json", str(out)], env)
-    window = xvfb_display.window(app, env, timeout=40)
+         "--seconds", f"{seconds:g}", "--layers", "basic", "--json", str(out)], env)
+    return app, xvfb_display.window(app, env, timeout=40), env
+
+
+def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
+    out = tmp_path / "v.json"
+    app, window, env = _open_swim_viewer(xvfb_display, out, 8)
     subprocess.run(["xdotool", "key", "--window", window, "Up", "Up", "Left", "Page_Up",
                     "End", "End"], env=env, check=True, timeout=10)
     log = app.communicate(timeout=90)[0].decode()
@@ -59,12 +65,8 @@ def test_viewer_places_the_target_where_it_is_double_clicked_under_xvfb(tmp_path
     # floats high, ~0.4 m: 0.4 / tan 15 deg = 1.5 m past), short of it once under. Either
     # way the target leaves 10 m ahead for a point within 3 m of the swimmer on the camera's
     # line, and the swim's target is that point.
-    env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
     out = tmp_path / "v.json"
-    app = xvfb_display.spawn(
-        [sys.executable, "-m", "flapsim.cli", "swim", "--viewer", "--stroke", "crawl",
-         "--seconds", "6", "--layers", "basic", "--json", str(out)], env)
-    window = xvfb_display.window(app, env, timeout=40)
+    app, window, env = _open_swim_viewer(xvfb_display, out, 6)
     geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", window], env=env,
                          capture_output=True, text=True, check=True, timeout=10).stdout
     size = dict(line.split("=") for line in geo.split() if "=" in line)
