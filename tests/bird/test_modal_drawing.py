@@ -170,6 +170,7 @@ class _Handle:
     def __init__(self, model, data, frames: list):
         self.m, self.d, self.frames = model, data, frames
         self.cam = types.SimpleNamespace()
+        self.perturb = mujoco.MjvPerturb()  # the mouse's selection (flapsim.viewer reads it)
         self.user_scn = types.SimpleNamespace(ngeom=0, maxgeom=0, geoms=[])
 
     def lock(self):
