@@ -212,15 +212,14 @@ def run_controller(args: argparse.Namespace) -> dict:
     from flapsim.bird import cycle
     from flapsim.bird.controller import (
         BaseController,
-        CruiseTarget,
         attach_predictor,
         fly_controlled,
         load_controller,
         make_lookahead,
         start_cruise,
-        trim_of_base_flight,
     )
     from flapsim.bird.flight import DoveFlight
+    from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
     from flapsim.bird.wingbeat import control_table
 
     n = max(4, int(getattr(args, "wingbeats", None) or 20))

@@ -2,7 +2,7 @@
 
 1. **Discovery.** The phase-1 controller flies many random steering/elevation tasks: from a
    random state (drawn as in phase 1, with its pre-simulation wingbeat) it is asked to steer
-   by alpha and climb by beta in one wingbeat (:class:`~flapsim.bird.controller.SteerTarget`)
+   by alpha and climb by beta in one wingbeat (:class:`~flapsim.bird.targets.SteerTarget`)
    with (alpha, beta) uniform over a range wider than the phase-1 data reach. Each task
    gives a sample (S, dS, dP, alpha, beta) measured, like phase 1, against the reference
    wingbeat from the same state: these are wingbeats the controller actually uses.
@@ -102,7 +102,7 @@ class DiscoveryConfig(StoredConfig):
     """Regression: ``knn`` (paper) or ``lwlr``."""
     k: int = 0
     """Neighbours (0: the method's default share of the database,
-    :data:`~flapsim.bird.controller.DEFAULT_K_SHARE`)."""
+    :data:`~flapsim.bird.regression.DEFAULT_K_SHARE`)."""
     alpha_max_deg: float = 30.0
     """Steering asked within +-this per wingbeat, deg."""
     beta_max_deg: float = 15.0
@@ -115,8 +115,10 @@ class DiscoveryWorker:
     """Runs the phase-1 controller on random steering tasks (one task = one sample)."""
 
     def __init__(self, config: DiscoveryConfig) -> None:
-        from flapsim.bird.controller import Regressor, WingbeatController, trim_of_base_flight
+        from flapsim.bird.controller import WingbeatController
         from flapsim.bird.database import load_database
+        from flapsim.bird.regression import Regressor
+        from flapsim.bird.targets import trim_of_base_flight
 
         if not config.db:
             raise InputError("phase 2 needs the phase-1 database (--from DB)")
@@ -143,7 +145,7 @@ class DiscoveryWorker:
         self.sampler.close()
 
     def sample(self, index: int) -> tuple[dict[str, np.ndarray] | None, str]:
-        from flapsim.bird.controller import SteerTarget
+        from flapsim.bird.targets import SteerTarget
 
         c = self.config
         rng = np.random.default_rng([c.seed, index])

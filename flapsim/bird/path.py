@@ -10,7 +10,7 @@ once the wingbeat is flown, at the time it actually ended: :meth:`PathTarget.end
 curve's direction there is the desired flight direction (heading and climb), and its curvature the
 turn, flown banked so that lift balances gravity and the centrifugal force (the paper's
 eq. 5: F_lift = -m g - m v^2/r n, i.e. tan(bank) = v^2 / (g r) for a level turn). That
-becomes the wingbeat controller's target state (:func:`~flapsim.bird.controller.target_state`).
+becomes the wingbeat controller's target state (:func:`~flapsim.bird.targets.target_state`).
 One departure: the bank asked is the curve's ``bank_lead_s`` after the wingbeat's end (the
 evaluation's desired attitude keeps the curve's bank at the end), because the dove's roll
 follows a request over a few wingbeats and a bank asked for the end arrives late.
@@ -32,7 +32,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from flapsim.bird import cycle
-from flapsim.bird.controller import GRAVITY, Trim, target_state
+from flapsim.bird.targets import GRAVITY, Trim, target_state
 from flapsim.errors import DataFileError, InputError
 
 MAX_COORD_M = 1e5
@@ -318,7 +318,7 @@ class PathTarget:
     slowed from 7 to 2.7 m/s and did not finish in time."""
     aoa_per_g_deg: float = 0.0
     """The nose is asked this much higher above the flight path per g of the turn's load
-    factor above 1, deg (:func:`~flapsim.bird.controller.target_state`'s ``aoa_per_g``; 0: the
+    factor above 1, deg (:func:`~flapsim.bird.targets.target_state`'s ``aoa_per_g``; 0: the
     level trim's angle of attack in every turn, the paper's). Tasks default to the dove's
     :data:`~flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG` (40 for rigid feathers, with the
     controller's carry; docs/flight_log.md, "Carrying the last wingbeat")."""

@@ -4,7 +4,7 @@ Two measurements the training issue asks for:
 
 * :func:`steering_table`: from random start states (drawn as in phase 1: a random pre-state
   and a random pre-simulation wingbeat), the controller is asked to steer by alpha and
-  climb by beta in one wingbeat (:class:`~flapsim.bird.controller.SteerTarget`); the error
+  climb by beta in one wingbeat (:class:`~flapsim.bird.targets.SteerTarget`); the error
   between the state it reaches and the target state is compared with the base
   controller's (P0 from the same state).
 * :func:`steering_range`: from steady cruise, the largest heading change per wingbeat the
@@ -19,17 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from flapsim.bird import cycle
-from flapsim.bird.controller import (
-    PAPER_WEIGHTS,
-    PathTurnTarget,
-    SignatureTarget,
-    SteerTarget,
-    Trim,
-    WingbeatController,
-    start_cruise,
-    weight_vector,
-)
+from flapsim.bird.controller import WingbeatController, start_cruise
+from flapsim.bird.regression import PAPER_WEIGHTS, weight_vector
 from flapsim.bird.sampling import SampleWorker
+from flapsim.bird.targets import PathTurnTarget, SignatureTarget, SteerTarget, Trim
 from flapsim.errors import SimulationError
 
 

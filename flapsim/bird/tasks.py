@@ -323,8 +323,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
              mirror: bool = True, **options) -> TaskResult:
     """Fly ``task`` with the learned controller over database ``db`` (default: bundled);
     ``controller``: an already built one (its flight's disturbances must match the task)."""
-    from flapsim.bird.controller import trim_of_base_flight
     from flapsim.bird.flight import FlightConfig
+    from flapsim.bird.targets import trim_of_base_flight
 
     own = controller is None
     if own:

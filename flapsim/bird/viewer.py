@@ -99,9 +99,10 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
     ``modal`` (``db``: by default the bundled database of that dove); ``options``: the
     regression's (:func:`~flapsim.bird.controller.load_controller`: ``mirror``,
     ``clip_request``, ...)."""
-    from flapsim.bird.controller import CruiseTarget, start_cruise, trim_of_base_flight
+    from flapsim.bird.controller import start_cruise
     from flapsim.bird.flight import FlightConfig
     from flapsim.bird.path import PathTarget, start_on_path
+    from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
     from flapsim.bird.tasks import (
         PushSpec,
         Task,

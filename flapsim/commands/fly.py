@@ -213,15 +213,14 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
     """Cruise under the learned controller (or the base one, from a rolled start)."""
     from flapsim.bird.controller import (
         BaseController,
-        CruiseTarget,
         cruise_metrics,
         fly_controlled,
         load_controller,
         start_cruise,
-        trim_of_base_flight,
     )
     from flapsim.bird.flight import DoveFlight
     from flapsim.bird.model import Dove
+    from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
     from flapsim.bird.wingbeat import p0, with_tail_bias
 
     dove = Dove.load(feathers=args.feathers)

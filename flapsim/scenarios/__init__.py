@@ -61,7 +61,7 @@ class EvalOptions:
     k: int | None = None
     k_dense: int | None = None
     """Flight: LWLR's neighbours among densely packed samples, growing to ``k`` among sparse
-    ones (None: the dove's default, :data:`flapsim.bird.controller.DEFAULT_K_DENSE_SHARE`;
+    ones (None: the dove's default, :data:`flapsim.bird.regression.DEFAULT_K_DENSE_SHARE`;
     0: always ``k``)."""
     mirror: bool = True
     """Flight: the regression also searches the samples' mirror images."""
@@ -78,7 +78,7 @@ class EvalOptions:
     clip_request: float = 0.02
     """Flight: the regression clips each requested dS component to these quantiles of the
     database's (0: no clip; the default is
-    :data:`flapsim.bird.controller.DEFAULT_CLIP_REQUEST`)."""
+    :data:`flapsim.bird.regression.DEFAULT_CLIP_REQUEST`)."""
     state_weight: float = 0.0
     """Flight: weight of the wingbeat's start state in the regression's neighbour search (0: dS
     only, the paper's)."""

@@ -139,7 +139,7 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         extra.update(_mirror_flight(sc, opt, task, r, files))
     if np.isfinite(geometry.sustained_radius_m):
         # the level turn's load factor at the speed flown: sqrt(1 + (v^2 / (g r))^2)
-        from flapsim.bird.controller import GRAVITY
+        from flapsim.bird.targets import GRAVITY
 
         v = opt.speed if opt.speed is not None else task.speed
         extra["sustained_turn_load_factor"] = float(

@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-from flapsim.bird import controller, path
+from flapsim.bird import path, targets
 
 CAP = np.radians(float(os.environ.get("AOA_CAP_DEG", "16.57")))
 _target_state = path.target_state
@@ -21,7 +21,7 @@ _target_state = path.target_state
 
 def _capped(trim, speed, heading, climb, turn_rate, S_now=None, settle_s=0.2, wind=None,
             aoa_per_g=0.0):
-    bank = float(np.arctan2(speed * turn_rate, controller.GRAVITY))
+    bank = float(np.arctan2(speed * turn_rate, targets.GRAVITY))
     extra = aoa_per_g * (1.0 / max(float(np.cos(bank)), 0.2) - 1.0)
     if extra > CAP:
         aoa_per_g = aoa_per_g * CAP / extra  # the same formula, asking CAP

@@ -14,10 +14,10 @@ without this patch 10 (20 with ``state_weight=1``) (docs/flight_log.md, "Tried, 
 
 import numpy as np
 
-from flapsim.bird import controller
+from flapsim.bird import regression
 
-_init = controller.Regressor.__init__
-_query = controller.Regressor._query_point
+_init = regression.Regressor.__init__
+_query = regression.Regressor._query_point
 
 
 def _init_attitude(self, dS, dP, *args, context=None, **kwargs):
@@ -34,6 +34,6 @@ def _query_attitude(self, x, s):
     return _query(self, x, s)
 
 
-if controller.Regressor.__init__ is _init and controller.Regressor._query_point is _query:
-    controller.Regressor.__init__ = _init_attitude
-    controller.Regressor._query_point = _query_attitude
+if regression.Regressor.__init__ is _init and regression.Regressor._query_point is _query:
+    regression.Regressor.__init__ = _init_attitude
+    regression.Regressor._query_point = _query_attitude

@@ -12,18 +12,18 @@ import os
 
 import numpy as np
 
-from flapsim.bird import controller, path
+from flapsim.bird import path, targets
 
 RATE = np.radians(float(os.environ.get("BANK_RATE_DEG", "15")))
 _target_state = path.target_state
 
 
 def _limited(trim, speed, heading, climb, turn_rate, S_now=None, *args, **kwargs):
-    bank = float(np.arctan2(speed * turn_rate, controller.GRAVITY))
+    bank = float(np.arctan2(speed * turn_rate, targets.GRAVITY))
     if S_now is not None:
         now = -float(S_now[1])  # the reduced state's roll is minus the target's bank
         bank = float(np.clip(bank, now - RATE, now + RATE))
-        turn_rate = controller.GRAVITY * np.tan(bank) / max(speed, 1e-3)
+        turn_rate = targets.GRAVITY * np.tan(bank) / max(speed, 1e-3)
     return _target_state(trim, speed, heading, climb, turn_rate, S_now, *args, **kwargs)
 
 

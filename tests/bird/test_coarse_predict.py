@@ -8,18 +8,16 @@ import pytest
 
 from flapsim.bird import cycle
 from flapsim.bird.controller import (
-    COARSE_RATE_HZ,
-    CoarsePredictor,
-    CruiseTarget,
     bundled_database_path,
     fly_controlled,
     load_controller,
     start_cruise,
-    trim_of_base_flight,
 )
 from flapsim.bird.database import load_database
 from flapsim.bird.flight import DoveFlight, FlightConfig
 from flapsim.bird.model import Dove, DoveParams
+from flapsim.bird.prediction import COARSE_RATE_HZ, CoarsePredictor
+from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
 from flapsim.bird.wingbeat import p0, with_tail_bias
 from flapsim.errors import InputError
 from flapsim.sim.callbacks import DISPATCHER

@@ -7,19 +7,17 @@ import pytest
 from flapsim.bird import cycle
 from flapsim.bird.controller import (
     BaseController,
-    CruiseTarget,
     bundled_database_path,
     cruise_metrics,
     fly_controlled,
     load_controller,
     start_cruise,
-    target_state,
-    trim_of_base_flight,
 )
 from flapsim.bird.database import load_database
 from flapsim.bird.flight import DoveFlight
 from flapsim.bird.model import Dove
 from flapsim.bird.sampling import RANGE_TOLERANCE
+from flapsim.bird.targets import CruiseTarget, target_state, trim_of_base_flight
 from flapsim.bird.wingbeat import control_table
 from flapsim.errors import DataFileError
 
@@ -185,7 +183,7 @@ def test_a_mirrored_sample_is_the_mirror_birds_flight(flight):
     # flies them: from a rolled, side-slipping, yawing state with a lopsided wingbeat, and
     # from the mirror state with the mirror wingbeat, the two ends are mirror images (the
     # model is symmetric to round-off; one wingbeat amplifies it to < 1e-9)
-    from flapsim.bird.controller import MIRROR_STATE
+    from flapsim.bird.regression import MIRROR_STATE
     from flapsim.bird.wingbeat import mirror_params, p0
 
     P = p0()

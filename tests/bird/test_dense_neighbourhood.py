@@ -4,9 +4,10 @@ where a request lies among densely packed samples, k where they are sparse."""
 import numpy as np
 import pytest
 
-from flapsim.bird.controller import DENSE_QUANTILES, Regressor, load_controller
+from flapsim.bird.controller import load_controller
 from flapsim.bird.flight import DoveFlight
 from flapsim.bird.model import Dove
+from flapsim.bird.regression import DENSE_QUANTILES, Regressor
 from flapsim.errors import InputError
 
 

@@ -201,9 +201,9 @@ def test_recovery_curve_on_the_path_is_the_path_itself():
     # a bird on a straight path flying along it at the asked speed: the Hermite curve from its
     # position and velocity to the look-ahead point and tangent is the straight line, so the
     # position asked at the end of a wingbeat of dt is p + v dt and the heading is the path's
-    from flapsim.bird.controller import Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import Trim
 
     h = np.radians(30.0)
     u = np.array([np.cos(h), np.sin(h), 0.0])
@@ -234,9 +234,9 @@ def test_the_desired_position_is_the_curve_at_the_wingbeats_actual_end():
     # (its own timewarp): on a straight path flown at 7 m/s the curve is the line, so the
     # desired position must be p + v 0.1, not p + v 0.1075 (5 cm further); tolerance as in
     # the test above (5 cm closest-point samples weighted < 0.032 by the Hermite basis)
-    from flapsim.bird.controller import Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import Trim
 
     path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
     trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
@@ -258,9 +258,9 @@ def test_near_the_paths_end_the_look_ahead_continues_straight_on():
     # point (7 m on) lies beyond the end, on the line's continuation, so the recovery curve is
     # still the line and the desired position after 0.1 s is p + 0.7 m (clamped to the end
     # point, the curve would have to cover 2 m in the second it is given: 0.36 m in 0.1 s)
-    from flapsim.bird.controller import Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import Trim
 
     path = FlightPath(np.array([[0, 0, 10.0], [20.0, 0, 10.0]]))
     p, t = path.ahead(25.0)
@@ -278,9 +278,9 @@ def test_near_the_paths_end_the_look_ahead_continues_straight_on():
 def test_in_a_crosswind_the_bird_crabs_so_that_its_ground_track_is_the_path():
     # a 2 m/s wind from the right (+y) across a path along +x, airspeed 7 m/s: the air
     # velocity that makes good +x is (sqrt(49 - 4), -2, 0), a heading of -asin(2/7) = -16.6 deg
-    from flapsim.bird.controller import Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget, _attitude_quat
+    from flapsim.bird.targets import Trim
 
     path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
     trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
@@ -303,9 +303,9 @@ def test_short_of_airspeed_the_climb_asked_gives_way(k):
     7 m/s is asked (speed integral off) is asked the climb whose vertical speed is the path's,
     7 sin 7 deg, less k x (7 - 5) x 7: for k = 0.1 asin((0.853 - 1.4) / 7) = -4.5 deg, a
     gentle descent to win back speed; k = 0 (and any bird at the speed asked) gets 7 deg."""
-    from flapsim.bird.controller import Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import Trim
 
     a = np.radians(7.0)
     u = np.array([np.cos(a), 0.0, np.sin(a)])
@@ -331,9 +331,9 @@ def test_the_bird_crabs_into_the_winds_lagged_average_and_is_carried_by_the_rest
     +x. The crab (heading -asin(w / 7)) uses the wind averaged with time constant ``memory``:
     after one 0.1 s wingbeat 3 (1 - exp(-0.1 / memory)) = 0.285 m/s for 1 s, all 3 m/s for 0;
     the ground velocity asked is that air velocity plus the wind of the moment."""
-    from flapsim.bird.controller import Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget, _attitude_quat
+    from flapsim.bird.targets import Trim
 
     path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
     trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
@@ -364,9 +364,9 @@ def test_the_bank_asked_is_the_recovery_curves_bank_lead_seconds_on(lead):
     # acceleration across the velocity. Asked at u = dt + lead; the curve itself (the
     # evaluation's desired attitude) at u = dt. Tolerance: the closest path point is found on
     # 5 cm samples, which moves the look-ahead point along x by < 2.5 cm: < 1e-4 rad here
-    from flapsim.bird.controller import GRAVITY, Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import GRAVITY, Trim
 
     def bank(u, y0=1.0):
         ay, vy = (12 * u - 6) * y0, (6 * u * u - 6 * u) * y0
@@ -401,9 +401,9 @@ def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys):
     # (lead 0, dt = 0.1 s, u = 0.1) is atan(a_lat / g) with a = (12u - 6) 3 = -14.4 m/s^2 across
     # and v = (7, (6u^2 - 6u) 3) = (7, -1.62): a_lat = 14.4 * 7 / 7.185 = 14.03 m/s^2, a bank
     # of 55.0 deg toward the path; asked, it is cut at the cap (tolerance: as above)
-    from flapsim.bird.controller import Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import Trim
 
     path = FlightPath(np.array([[0, 0, 10.0], [200.0, 0, 10.0]]))
     tgt = PathTarget(Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0])), path, speed=7.0,
@@ -423,8 +423,8 @@ def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys):
 
 
 def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
-    from flapsim.bird.controller import Trim
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import Trim
 
     path = FlightPath(np.array([[0, 0, 10.0], [20.0, 0, 10.0]]))
     for bad in (-0.1, 1.5, float("nan")):
@@ -449,9 +449,9 @@ def test_ahead_of_a_tight_turn_the_speed_asked_is_where_it_needs_the_load_factor
     5.42 m/s); the floor and the speed asked bound it, a straight far from the turn keeps the
     speed asked, and 0 turns the slowing off. Tolerance 1 %: away from its ends the spline
     through 48 points a turn has the circle's curvature within 0.3 %."""
-    from flapsim.bird.controller import GRAVITY, Trim
     from flapsim.bird.cycle import CycleEnd
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import GRAVITY, Trim
 
     a = np.linspace(0.0, 2.5 * np.pi, 61)
     lead_in = np.stack([np.linspace(-40.0, 0.0, 9)[:-1], np.zeros(8), np.full(8, 10.0)], 1)
@@ -492,8 +492,8 @@ def test_the_time_allowed_follows_the_speeds_asked():
     sqrt(g r sqrt(n^2 - 1)) (5.42 m/s for 4 m at 1.25 g). Tolerance 3 %: the speed asked
     starts to drop two look-ahead distances (14 m) before the turn, and the spline's ends
     bend tighter than its points."""
-    from flapsim.bird.controller import GRAVITY, Trim
     from flapsim.bird.path import PathTarget
+    from flapsim.bird.targets import GRAVITY, Trim
 
     a = np.linspace(0.0, 2.5 * np.pi, 61)
     lead_in = np.stack([np.linspace(-40.0, 0.0, 9)[:-1], np.zeros(8), np.full(8, 10.0)], 1)

@@ -5,18 +5,17 @@ import pytest
 
 from flapsim.bird import cycle
 from flapsim.bird.controller import (
-    CruiseTarget,
-    S0Predictor,
     attach_predictor,
     bundled_database_path,
     fly_controlled,
     load_controller,
     start_cruise,
-    trim_of_base_flight,
 )
 from flapsim.bird.database import load_database
 from flapsim.bird.flight import DoveFlight
 from flapsim.bird.model import Dove
+from flapsim.bird.prediction import S0Predictor
+from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
 from flapsim.errors import InputError
 
 SHARED_FLIGHT = True

@@ -11,17 +11,16 @@ from flapsim.bird.controller import (
     DEFAULT_REFINE_GOAL,
     MAX_REFINE,
     REFINE_COMPONENTS,
-    CruiseTarget,
     WingbeatController,
     correction_goal,
     load_controller,
     refine_error,
     start_cruise,
-    trim_of_base_flight,
 )
 from flapsim.bird.flight import DoveFlight
 from flapsim.bird.model import Dove
 from flapsim.bird.paths import inclined_circle
+from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
 from flapsim.bird.tasks import Task, fly_task
 from flapsim.cli import main
 from flapsim.errors import InputError
@@ -75,7 +74,7 @@ class _Banked:
         self.trim, self.speed_surplus = trim, speed_surplus
 
     def __call__(self, e0):
-        from flapsim.bird.controller import target_state
+        from flapsim.bird.targets import target_state
 
         return target_state(self.trim, 7.0 + self.speed_surplus, 0.0, 0.0,
                             9.81 * np.tan(np.radians(25)) / 7.0, e0.S, settle_s=0.0)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from flapsim.bird.controller import PAPER_WEIGHTS, Regressor, default_k, idw_average, weight_vector
+from flapsim.bird.regression import PAPER_WEIGHTS, Regressor, default_k, idw_average, weight_vector
 from flapsim.errors import InputError
 
 
@@ -103,7 +103,7 @@ def test_bad_inputs_are_one_line_errors():
 
 
 def test_mirror_samples_swap_sides_and_make_the_regression_mirror_symmetric():
-    from flapsim.bird.controller import MIRROR_STATE, mirror_samples
+    from flapsim.bird.regression import MIRROR_STATE, mirror_samples
     from flapsim.bird.wingbeat import N_PARAMS, mirror_params, p0
 
     # one hand-made sample: left shoulder elevation scaled 1.1 (s index 0), right elbow

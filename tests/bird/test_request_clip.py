@@ -6,7 +6,7 @@ closed form."""
 import numpy as np
 import pytest
 
-from flapsim.bird.controller import DEFAULT_CLIP_REQUEST, Regressor
+from flapsim.bird.regression import DEFAULT_CLIP_REQUEST, Regressor
 from flapsim.errors import InputError
 
 N = 4000
@@ -74,7 +74,8 @@ def test_eval_and_fly_options_reach_the_controller(monkeypatch):
     conditioned regression is given the state the wingbeat starts from."""
     import flapsim.bird.tasks as tasks
     from flapsim.bird import cycle, paths
-    from flapsim.bird.controller import CruiseTarget, start_cruise, trim_of_base_flight
+    from flapsim.bird.controller import start_cruise
+    from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
     from flapsim.scenarios import EvalOptions
     from flapsim.scenarios.flight import _fly_task
 
