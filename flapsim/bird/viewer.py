@@ -10,6 +10,8 @@ the simulation loop between wingbeats (the viewer's key callback only queues the
 * Up / Down: climb angle +-1 deg (elevation);
 * Page Up / Page Down: speed +-0.25 m/s;
 * End: level flight straight on (turn rate and climb to 0);
+* double-click (left button) on the ground: fly toward that point (the heading turned to it,
+  the turn rate asked back to 0; the bird banks into the turn as for the keys);
 * Insert: a push of 6 N for 0.1 s from the left, at the trunk's centre of mass;
 * Delete: a 1-cosine gust of 3 m/s across the flight, 0.5 s;
 * Home: tracking / free camera.
@@ -161,6 +163,9 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 push_now |= p
                 if g:
                     _gust(fl, t, v_prev)
+            for point in view.pending_clicks():
+                if isinstance(target, CruiseTarget):  # a path is followed, not steered
+                    _fly_toward(target, cmd, point, positions[-1], t)
             push = None
             if push_now:
                 heading = float(np.arctan2(v_prev[1], v_prev[0]))
@@ -189,12 +194,13 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 _place(m, shown, q[ix], draw)
                 steer = ("following the path\n-" if path is not None else
                          f"{cmd.turn_rate_deg_s:+.0f} deg/s\n{cmd.climb_deg:+.0f} deg")
-                texts = ("steering\nelevation\nspeed\nwind\nkeys",
+                texts = ("steering\nelevation\nspeed\nwind\nkeys\n\n",
                          f"{steer}\n"
                          f"{np.linalg.norm(e.com_vel):.2f} m/s (asked {cmd.speed:.2f})\n"
                          f"{_wind_text(fl, shown.time)}\n"
                          "arrows: steer/climb, PgUp/PgDn: speed, End: level,\n"
-                         "Insert: push, Delete: gust, Home: camera")
+                         "double-click: fly toward it, Insert: push, Delete: gust,\n"
+                         "Home: camera")
                 if not view.show(shown.time, items, texts):
                     running = False
                     break
@@ -217,6 +223,17 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             "pushes": cmd.pushes, "gusts": cmd.gusts, "events": cmd.events,
             "max_wind_m_s": max_wind,
             "wingbeats": len(headings) - 1}
+
+
+def _fly_toward(target, cmd: Command, point: np.ndarray, position: np.ndarray, t: float) -> None:
+    """Turn the cruise target's heading to the horizontal bearing of ``point`` from
+    ``position`` (world, m), with no turn rate asked on top; logged as a click event."""
+    bearing = float(np.arctan2(point[1] - position[1], point[0] - position[0]))
+    target.heading += float(cycle.wrap(bearing - target.heading))
+    cmd.turn_rate_deg_s = 0.0
+    cmd.events.append({"t": t, "key": "double-click", "click": [float(v) for v in point],
+                       "heading_deg": float(np.degrees(bearing)), "turn_rate_deg_s": 0.0,
+                       "climb_deg": cmd.climb_deg, "speed": cmd.speed})
 
 
 def _place(m: mujoco.MjModel, shown: mujoco.MjData, qpos: np.ndarray, draw) -> None:

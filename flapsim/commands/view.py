@@ -9,8 +9,8 @@ from flapsim.commands.fly import add_regression_arguments
 from flapsim.errors import InputError
 from flapsim.validate import add_input_arg
 
-HELP = ("steer the dove in MuJoCo's viewer: arrows steer and climb, PgUp/PgDn speed, Insert "
-        "push, Delete gust, Home camera (needs a display or Xvfb)")
+HELP = ("steer the dove in MuJoCo's viewer: arrows steer and climb, double-click flies toward "
+        "a point, PgUp/PgDn speed, Insert push, Delete gust, Home camera (needs a display or Xvfb)")
 SEED_HELP = "ignored: the interactive flight draws nothing at random"
 
 
