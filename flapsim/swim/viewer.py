@@ -62,11 +62,13 @@ class SwimViewer:
         d = swimmer.data
         for key in self.view.pending_keys():
             self._key(key, layer, float(d.time))
-        for point in self.view.pending_clicks():
-            self._click(point, swimmer, float(d.time))
         if d.time + 1e-9 < self.view.next_frame:
             return True
         self.view.next_frame = d.time + FRAME_S
+        # once a frame: MuJoCo records a click at the viewer's sync, and reading it takes the
+        # viewer's lock, which its render thread holds while it draws
+        for point in self.view.pending_clicks():
+            self._click(point, swimmer, float(d.time))
         return self.view.show(float(d.time), [Marker((self.target.x, self.target.y, 0.05))],
                               self._texts(swimmer, layer))
 
