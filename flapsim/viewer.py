@@ -8,7 +8,8 @@ markers and paths as extra geoms, writes a text overlay, and paces the simulatio
 time. ``Home`` switches between the tracking camera and MuJoCo's free camera. A left
 double-click in the scene is MuJoCo's selection; :meth:`AnimalViewer.pending_clicks` hands
 the point clicked to the caller (the swimmer's viewer puts its target there, as the paper's
-user places it with the mouse).
+user places it with the mouse; the dove's turns toward it). Reading it takes the viewer's
+lock, so callers read it once a frame, not every physics step.
 
 Needs a display (or Xvfb) and MuJoCo's GLFW backend: ``MUJOCO_GL`` unset or ``glfw``.
 Close it with :meth:`AnimalViewer.close` (leaving it to interpreter shutdown segfaulted).
