@@ -45,6 +45,7 @@ from flapsim.viewer import (
     KEY_RIGHT,
     KEY_UP,
     AnimalViewer,
+    Marker,
     Polyline,
 )
 
@@ -166,6 +167,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             for point in view.pending_clicks():
                 if isinstance(target, CruiseTarget):  # a path is followed, not steered
                     _fly_toward(target, cmd, point, positions[-1], t)
+                    # where it was sent, drawn on the ground until the next click
+                    items = [Marker(point, radius=1.0)]
             push = None
             if push_now:
                 heading = float(np.arctan2(v_prev[1], v_prev[0]))

@@ -105,6 +105,9 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
 
 
 def test_a_double_click_on_the_ground_turns_the_dove_toward_it(tmp_path, xvfb_display):
+    pytest.importorskip("PIL.ImageGrab")
+    from PIL import ImageGrab
+
     # the tracking camera looks at the dove from 1.4 m, 15 deg above, from azimuth 30 deg
     # (flapsim.bird.viewer): the window's centre ray meets the ground, 10 m below, about
     # 10 / tan 15 deg = 37 m on along that bearing, so a double-click there asks a heading
@@ -121,6 +124,17 @@ def test_a_double_click_on_the_ground_turns_the_dove_toward_it(tmp_path, xvfb_di
     subprocess.run(["xdotool", "mousemove", "--window", window, str(int(g["WIDTH"]) // 2),
                     str(int(g["HEIGHT"]) // 2), "click", "--repeat", "2", "--delay", "80", "1"],
                    env=env, check=True, timeout=10)
+    # the point it was sent to is drawn: a red sphere of 1 m radius ~37 m away, ~3 deg across
+    # (~35 px of the window's height); nothing else in the scene is red
+    x, y, w, h = (int(g[k]) for k in ("X", "Y", "WIDTH", "HEIGHT"))
+    red = []
+    for _ in range(6):
+        time.sleep(0.3)
+        if app.poll() is not None:
+            break
+        rgb = np.asarray(ImageGrab.grab(xdisplay=xvfb_display.name).convert("RGB"))[y:y + h, x:x + w]
+        r, gr, b = (rgb[..., i].astype(int) for i in range(3))
+        red.append(int(((r > 150) & (gr < 90) & (b < 90)).sum()))
     log = app.communicate(timeout=240)[0].decode()
     assert app.returncode == 0, log[-2000:]
     s = json.loads(out.read_text())["viewer"]
@@ -131,3 +145,4 @@ def test_a_double_click_on_the_ground_turns_the_dove_toward_it(tmp_path, xvfb_di
     assert 15.0 < c["heading_deg"] < 45.0, c
     assert s["final_command"]["turn_rate_deg_s"] == 0.0
     assert s["heading_change_deg"] > 10.0, s
+    assert max(red) > 50, red
