@@ -80,6 +80,13 @@ class XDisplay:
         time.sleep(1.0)
         return windows[0]
 
+    def geometry(self, window: str, env: dict) -> tuple[int, int, int, int]:
+        """The window's x, y, width and height on the display, pixels."""
+        geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", window], env=env,
+                             capture_output=True, text=True, check=True, timeout=10).stdout
+        g = dict(line.split("=") for line in geo.split() if "=" in line)
+        return int(g["X"]), int(g["Y"]), int(g["WIDTH"]), int(g["HEIGHT"])
+
 
 @pytest.fixture
 def xvfb_display():

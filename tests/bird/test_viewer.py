@@ -47,15 +47,34 @@ def _bird_pixels(rgb: np.ndarray) -> np.ndarray:
     return (g <= r + 4) & (b <= r + 4) & (r > 30)
 
 
-def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_display):
-    pytest.importorskip("PIL.ImageGrab")
-    from PIL import ImageGrab
-
+def _open_dove_viewer(xvfb_display, out: Path):
+    """``flapsim view`` for 4 s on the virtual display: (the process, its window, its env)."""
     env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
-    out = tmp_path / "v.json"
     app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli", "view", "--seconds", "4",
                               "--json", str(out)], env)
-    window = xvfb_display.window(app, env)
+    return app, xvfb_display.window(app, env), env
+
+
+def _screenshots(app, xvfb_display, box: tuple[int, int, int, int], n: int = 6) -> list:
+    """Up to ``n`` RGB shots of the window, 0.3 s apart, while the app runs (on a loaded
+    machine a frame may be mid-redraw, hence several)."""
+    from PIL import ImageGrab
+
+    x, y, w, h = box
+    shots = []
+    for _ in range(n):
+        time.sleep(0.3)
+        if app.poll() is not None:
+            break
+        shots.append(np.asarray(ImageGrab.grab(xdisplay=xvfb_display.name).convert("RGB"))
+                     [y:y + h, x:x + w])
+    return shots
+
+
+def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_display):
+    pytest.importorskip("PIL.ImageGrab")
+    out = tmp_path / "v.json"
+    app, window, env = _open_dove_viewer(xvfb_display, out)
     # three Left presses: a left turn of 15 deg/s asked; a second later a push and a gust. Not
     # all at once: a 6 N side push and a 3 m/s gust at the very wingbeat the bank begins (0.7 s
     # in; measured with scripted keys) turn this dove 33 deg the other way, half a second later
@@ -65,18 +84,8 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
     time.sleep(1.0)
     subprocess.run(["xdotool", "key", "--window", window, "Insert", "Delete"], env=env, check=True,
                    timeout=10)
-    geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", window], env=env,
-                         capture_output=True, text=True, timeout=10).stdout
-    g = dict(line.split("=") for line in geo.split() if "=" in line)
-    x, y, w, h = (int(g[k]) for k in ("X", "Y", "WIDTH", "HEIGHT"))
-    # a few screenshots while it flies (on a loaded machine a frame may be mid-redraw)
-    shots = []
-    for _ in range(6):
-        time.sleep(0.3)
-        if app.poll() is not None:
-            break
-        shots.append(np.asarray(ImageGrab.grab(xdisplay=xvfb_display.name).convert("RGB"))
-                     [y:y + h, x:x + w])
+    # a few screenshots while it flies
+    shots = _screenshots(app, xvfb_display, xvfb_display.geometry(window, env))
     assert shots, "the viewer closed before a screenshot"
     log = app.communicate(timeout=240)[0].decode()
     assert app.returncode == 0, log[-2000:]  # also: no crash while closing the window
@@ -106,35 +115,20 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
 
 def test_a_double_click_on_the_ground_turns_the_dove_toward_it(tmp_path, xvfb_display):
     pytest.importorskip("PIL.ImageGrab")
-    from PIL import ImageGrab
-
     # the tracking camera looks at the dove from 1.4 m, 15 deg above, from azimuth 30 deg
     # (flapsim.bird.viewer): the window's centre ray meets the ground, 10 m below, about
     # 10 / tan 15 deg = 37 m on along that bearing, so a double-click there asks a heading
     # ~30 deg left of the flight's (+x). Straight flight holds its heading within ~2 deg, so
     # a left turn of over 10 deg by the end is the click's doing.
-    env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
     out = tmp_path / "v.json"
-    app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli", "view", "--seconds", "4",
-                              "--json", str(out)], env)
-    window = xvfb_display.window(app, env)
-    geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", window], env=env,
-                         capture_output=True, text=True, timeout=10).stdout
-    g = dict(line.split("=") for line in geo.split() if "=" in line)
-    subprocess.run(["xdotool", "mousemove", "--window", window, str(int(g["WIDTH"]) // 2),
-                    str(int(g["HEIGHT"]) // 2), "click", "--repeat", "2", "--delay", "80", "1"],
-                   env=env, check=True, timeout=10)
+    app, window, env = _open_dove_viewer(xvfb_display, out)
+    box = xvfb_display.geometry(window, env)
+    subprocess.run(["xdotool", "mousemove", "--window", window, str(box[2] // 2), str(box[3] // 2),
+                    "click", "--repeat", "2", "--delay", "80", "1"], env=env, check=True, timeout=10)
     # the point it was sent to is drawn: a red sphere of 1 m radius ~37 m away, ~3 deg across
     # (~35 px of the window's height); nothing else in the scene is red
-    x, y, w, h = (int(g[k]) for k in ("X", "Y", "WIDTH", "HEIGHT"))
-    red = []
-    for _ in range(6):
-        time.sleep(0.3)
-        if app.poll() is not None:
-            break
-        rgb = np.asarray(ImageGrab.grab(xdisplay=xvfb_display.name).convert("RGB"))[y:y + h, x:x + w]
-        r, gr, b = (rgb[..., i].astype(int) for i in range(3))
-        red.append(int(((r > 150) & (gr < 90) & (b < 90)).sum()))
+    red = [int(((s[..., 0] > 150) & (s[..., 1] < 90) & (s[..., 2] < 90)).sum())
+           for s in _screenshots(app, xvfb_display, box)]
     log = app.communicate(timeout=240)[0].decode()
     assert app.returncode == 0, log[-2000:]
     s = json.loads(out.read_text())["viewer"]

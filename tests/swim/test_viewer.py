@@ -67,10 +67,7 @@ def test_viewer_places_the_target_where_it_is_double_clicked_under_xvfb(tmp_path
     # line, and the swim's target is that point.
     out = tmp_path / "v.json"
     app, window, env = _open_swim_viewer(xvfb_display, out, 6)
-    geo = subprocess.run(["xdotool", "getwindowgeometry", "--shell", window], env=env,
-                         capture_output=True, text=True, check=True, timeout=10).stdout
-    size = dict(line.split("=") for line in geo.split() if "=" in line)
-    w, h = int(size["WIDTH"]), int(size["HEIGHT"])
+    _, _, w, h = xvfb_display.geometry(window, env)
     subprocess.run(["xdotool", "mousemove", "--window", window, str(w // 2), str(h // 2),
                     "click", "--repeat", "2", "--delay", "80", "1"], env=env, check=True, timeout=10)
     log = app.communicate(timeout=90)[0].decode()
