@@ -19,11 +19,12 @@ import argparse
 
 import numpy as np
 
-from flapsim.bird import controller as C
-from flapsim.bird import cycle, paths
-from flapsim.bird.tasks import Task, build_flight, fly_task
-from flapsim.errors import SimulationError
-from flapsim.io import write_json
+from flapsim.bird.control import controller as C
+from flapsim.bird.flight import cycle
+from flapsim.bird.tasks import path_shapes as paths
+from flapsim.bird.tasks.flight_tasks import Task, build_flight, fly_task
+from flapsim.core.errors import SimulationError
+from flapsim.core.io import write_json
 
 FLIGHTS = {"s-curve-3.5": (lambda: paths.s_curve(3.5), 3.0),
            "circle-3-left": (lambda: paths.helix(3.0, 0.0, 1.0), 3.0),

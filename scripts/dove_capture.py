@@ -1,4 +1,4 @@
-"""Regenerate the bundled SYNTHETIC dove capture (flapsim/bird/data/dove_capture_synthetic.npz).
+"""Regenerate the bundled SYNTHETIC dove capture (flapsim/bird/flight/data/dove_capture_synthetic.npz).
 
     PYTHONPATH=. python scripts/dove_capture.py [--seed 2013]
 """
@@ -9,8 +9,8 @@ import argparse
 
 import numpy as np
 
-from flapsim.bird.capture import DATA_FILE
-from flapsim.bird.synthetic import write_reference
+from flapsim.bird.flight.capture import DATA_FILE
+from flapsim.bird.flight.synthetic_capture import write_reference
 
 
 def main() -> None:

@@ -18,14 +18,14 @@ import json
 
 import numpy as np
 
-from flapsim.bird.controller import cruise_metrics, fly_controlled, load_controller, start_cruise
-from flapsim.bird.database import read_header
-from flapsim.bird.flight import DoveFlight
-from flapsim.bird.model import Dove
-from flapsim.bird.sampling import SampleWorker, SamplingConfig
-from flapsim.bird.steering import steering_range, steering_table
-from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
-from flapsim.io import write_json
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import cruise_metrics, fly_controlled, load_controller, start_cruise
+from flapsim.bird.control.database import read_header
+from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
+from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
+from flapsim.bird.training.steering import steering_range, steering_table
+from flapsim.core.io import write_json
 
 
 def main() -> None:
@@ -65,8 +65,8 @@ def main() -> None:
         sampler = SampleWorker(SamplingConfig.from_dict({**cfg, "source": "capture",
                                                          "extrapolate": 0.0}))
         cmds = [(al, be) for al in (-8.0, 0.0, 8.0) for be in (-5.0, 0.0, 5.0)]
-        from flapsim.bird.database import load_database
-        from flapsim.bird.targets import fit_steering_signature
+        from flapsim.bird.control.database import load_database
+        from flapsim.bird.control.targets import fit_steering_signature
 
         arr = load_database(a.db).arrays
         D = fit_steering_signature(arr["dS"], arr["alpha"], arr["beta"])

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from flapsim.bird.calibration import record, summary
-from flapsim.bird.feather_modes import ModalParams
-from flapsim.bird.flight import FlightConfig, wind_tunnel
-from flapsim.bird.model import DoveParams
-from flapsim.bird.wingbeat import p0, with_tail_bias
+from flapsim.bird.body.feather_modes import ModalParams
+from flapsim.bird.body.model import DoveParams
+from flapsim.bird.flight.calibration import record, summary
+from flapsim.bird.flight.dove_flight import FlightConfig, wind_tunnel
+from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 
 
 def plot(rec: dict, path: Path) -> None:

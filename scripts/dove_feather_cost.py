@@ -27,10 +27,10 @@ import numpy as np
 from mujoco import rollout
 from numba import njit
 
-from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.modal_feathers import FI, modal_engine, modal_kernel
-from flapsim.bird.model import Dove
-from flapsim.bird.wingbeat import control_table, p0, with_tail_bias
+from flapsim.bird.body.feather_dynamics import FI, modal_engine, modal_kernel
+from flapsim.bird.body.model import Dove
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.wingbeat import control_table, p0, with_tail_bias
 from flapsim.fluid.surfaces import surface_kernel
 
 

@@ -19,10 +19,10 @@ import time
 import mujoco
 import numpy as np
 
-from flapsim.bird.feather_modes import ModalParams
-from flapsim.bird.flight import flight_metrics, fly
-from flapsim.bird.modal_feathers import dove_feather_modes
-from flapsim.bird.model import Dove
+from flapsim.bird.body.feather_dynamics import dove_feather_modes
+from flapsim.bird.body.feather_modes import ModalParams
+from flapsim.bird.body.model import Dove
+from flapsim.bird.flight.dove_flight import flight_metrics, fly
 
 
 def tip_series(dove: Dove, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:

@@ -16,10 +16,10 @@ import argparse
 
 import numpy as np
 
-from flapsim.bird.path import FlightPath
-from flapsim.bird.paths import START_HEIGHT, inclined_circle
-from flapsim.bird.tasks import Task, fly_task
-from flapsim.io import write_json
+from flapsim.bird.tasks.flight_tasks import Task, fly_task
+from flapsim.bird.tasks.path_control import FlightPath
+from flapsim.bird.tasks.path_shapes import START_HEIGHT, inclined_circle
+from flapsim.core.io import write_json
 
 
 def climb(angle_deg: float, length_m: float = 80.0) -> FlightPath:

@@ -1,4 +1,4 @@
-"""Generate bird_mjcf/dove.xml from flapsim/bird/data/dove.toml (the one parameter file).
+"""Generate bird_mjcf/dove.xml from flapsim/bird/body/data/dove.toml (the one parameter file).
 
     PYTHONPATH=. python scripts/dove_generate.py [--params PATH] [--out PATH]
 
@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flapsim.bird.model import PARAM_FILE, Dove, DoveParams, all_feathers, build_xml
-from flapsim.io import atomic_path
+from flapsim.bird.body.model import PARAM_FILE, Dove, DoveParams, all_feathers, build_xml
+from flapsim.core.io import atomic_path
 
 ROOT = Path(__file__).resolve().parents[1]
 

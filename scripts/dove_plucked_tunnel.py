@@ -5,7 +5,7 @@ wingbeat, then of left/right-asymmetric variants of it (what could hold the roll
     PYTHONPATH=. python scripts/dove_plucked_tunnel.py [--plucked 2,5,8] [--json out.json]
 
 Primaries are counted from the outermost, as the paper's Fig. 15 (the ``plucked-3`` scenario:
-2, 5, 8). Roll moment > 0 lifts the left wing (x forward, z up); :func:`flapsim.bird.flight.
+2, 5, 8). Roll moment > 0 lifts the left wing (x forward, z up); :func:`flapsim.bird.flight.dove_flight.
 wind_tunnel` with ``plucked``.
 """
 
@@ -16,9 +16,9 @@ import dataclasses
 
 import numpy as np
 
-from flapsim.bird.flight import FlightConfig, wind_tunnel
-from flapsim.bird.model import DOF_NAMES, DoveParams
-from flapsim.bird.wingbeat import p0, with_tail_bias
+from flapsim.bird.body.model import DOF_NAMES, DoveParams
+from flapsim.bird.flight.dove_flight import FlightConfig, wind_tunnel
+from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 from flapsim.scenarios.flight import primary_name
 
 
@@ -51,7 +51,7 @@ def main() -> None:
         print(f"  {what:<46} L/W {r.lift_per_weight:.3f}  T/W {r.thrust_per_weight:+.3f}  roll "
               f"{r.roll_moment * 1e3:+7.1f} mN m  yaw {r.yaw_moment * 1e3:+6.1f} mN m")
     if a.json:
-        from flapsim.io import write_json
+        from flapsim.core.io import write_json
 
         write_json(a.json, {"plucked": list(plucked), "speed": a.speed, "pitch_deg": a.pitch,
                             "runs": rows})

@@ -1,4 +1,4 @@
-"""Where the dove's muscle power goes in free flight: :func:`flapsim.bird.power.power_budget`
+"""Where the dove's muscle power goes in free flight: :func:`flapsim.bird.flight.power.power_budget`
 printed (the reference wingbeat repeated from the cruise start; any coefficient table).
 
     PYTHONPATH=. python scripts/dove_power_budget.py [--wingbeats 6] [--skip 2]
@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import argparse
 
-from flapsim.bird.power import power_budget
-from flapsim.io import write_json
+from flapsim.bird.flight.power import power_budget
+from flapsim.core.io import write_json
 
 
 def main() -> None:

@@ -17,10 +17,10 @@ import argparse
 
 import numpy as np
 
-from flapsim.bird import paths
-from flapsim.bird.path import FlightPath
-from flapsim.bird.tasks import PushSpec, Task, fly_task
-from flapsim.io import write_json
+from flapsim.bird.tasks import path_shapes as paths
+from flapsim.bird.tasks.flight_tasks import PushSpec, Task, fly_task
+from flapsim.bird.tasks.path_control import FlightPath
+from flapsim.core.io import write_json
 
 PUSHES = (("left", 6.0), ("left", 8.0), ("right", 6.0), ("right", 8.0), ("down", 6.0),
           ("down", 8.0), ("back", 6.0), ("back", 8.0))

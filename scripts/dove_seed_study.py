@@ -18,7 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from flapsim.io import write_json
+from flapsim.core.io import write_json
 
 
 def _seeds(text: str) -> list[int]:
@@ -72,11 +72,11 @@ def main() -> None:
         tag = "" if a.feathers == "rigid" else "modal_"
         db = cache / f"{tag}seed{seed}.db"
         if not db.exists():
-            subprocess.run([sys.executable, "-m", "flapsim.cli", "train", "--samples", str(a.samples),
+            subprocess.run([sys.executable, "-m", "flapsim.cli.main", "train", "--samples", str(a.samples),
                             "--pre-pitch-deg", "10", "--pre-roll-deg", "10", "--seed", str(seed),
                             "--float32", "--feathers", a.feathers, "--out", str(db)], check=True)
         out = cache / f"{tag}suite_seed{seed}.json"
-        cmd = [sys.executable, "-m", "flapsim.cli", "eval", "--scenario", ",".join(flight),
+        cmd = [sys.executable, "-m", "flapsim.cli.main", "eval", "--scenario", ",".join(flight),
                "--db", str(db), "--feathers", a.feathers, "--json", str(out),
                *shlex.split(a.eval_args)]
         if a.quick:

@@ -15,8 +15,8 @@ import json
 
 import numpy as np
 
-from flapsim.bird.flight import flight_metrics, fly
-from flapsim.bird.model import Dove, DoveParams
+from flapsim.bird.body.model import Dove, DoveParams
+from flapsim.bird.flight.dove_flight import flight_metrics, fly
 
 
 def main() -> None:
@@ -54,7 +54,7 @@ def main() -> None:
         rows.append(row)
         print(json.dumps(row))
     if args.json:
-        from flapsim.io import write_json
+        from flapsim.core.io import write_json
 
         write_json(args.json, {"wingbeats": args.wingbeats, "runs": rows})
 

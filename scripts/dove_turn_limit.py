@@ -2,7 +2,7 @@
 wingbeats (shoulder-flap scale, beat rate, shoulder twist) around the reference wingbeat,
 each kept only if the dove flies it within its joint ranges (the database's acceptance
 rule), flown in the fixed-trunk tunnel at a grid of pitches and speeds
-(:mod:`flapsim.bird.limits`). Prints, per speed, the largest load factor held at constant
+(:mod:`flapsim.bird.flight.limits`). Prints, per speed, the largest load factor held at constant
 speed, its turn radius (with that wingbeat's joint-range excess and its untrimmed pitch
 moment: moment balance is not asked) and the steepest climb, and how many wingbeats stayed
 within their ranges.
@@ -19,8 +19,8 @@ from dataclasses import asdict
 
 import numpy as np
 
-from flapsim.bird.limits import Candidate, best_sustained, load_factor_for_radius, search
-from flapsim.io import write_json
+from flapsim.bird.flight.limits import Candidate, best_sustained, load_factor_for_radius, search
+from flapsim.core.io import write_json
 
 
 def _floats(s: str) -> list[float]:

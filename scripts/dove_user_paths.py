@@ -7,9 +7,9 @@ allowed).
     PYTHONPATH=. python scripts/dove_user_paths.py [--db bundled,seed1.db,...] [--refine N]
         [--only NAME,...] [--json out.json]
 
-The paths are :data:`flapsim.bird.paths.USER_PATHS` (held out of the scenarios; see there how
+The paths are :data:`flapsim.bird.tasks.path_shapes.USER_PATHS` (held out of the scenarios; see there how
 they start). The table prints the tightest radius and the steepest climb and descent of each
-path as :meth:`~flapsim.bird.path.FlightPath.geometry` measures them. About 2 minutes a
+path as :meth:`~flapsim.bird.tasks.path_control.FlightPath.geometry` measures them. About 2 minutes a
 database on one core.
 """
 
@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import argparse
 
-from flapsim.bird.paths import USER_PATHS as PATHS
-from flapsim.bird.paths import helix
-from flapsim.bird.tasks import Task, build_flight, fly_task
-from flapsim.io import write_json
+from flapsim.bird.tasks.flight_tasks import Task, build_flight, fly_task
+from flapsim.bird.tasks.path_shapes import USER_PATHS as PATHS
+from flapsim.bird.tasks.path_shapes import helix
+from flapsim.core.io import write_json
 
 
 def study(db: str | None, refine: int | None, names: list[str]) -> list[dict]:

@@ -5,7 +5,7 @@ adds the ten held-out user paths (``user``) and any evaluation option (``--set``
 
 A controlled flight is chaotic: near the limits of what the dove can do, one run's verdict
 turns on last-bit differences (session 18: the same commit lost ``climb-turn-15`` here where
-session 15 had followed it; see :mod:`flapsim.environment`). A completion rate over
+session 15 had followed it; see :mod:`flapsim.core.environment`). A completion rate over
 perturbed starts says what one verdict cannot: whether the scenario is within reach, at its
 edge, or beyond it.
 
@@ -14,7 +14,7 @@ edge, or beyond it.
         [--patch FILE.py ...] [--json out.json]
 
 NAME: a path scenario (``flapsim eval --list``: figure8*, sinusoid*, climb-turn-*, plucked-*,
-wind-*) or one of :data:`flapsim.bird.paths.USER_PATHS` (``user``: all ten). The draws are
+wind-*) or one of :data:`flapsim.bird.tasks.path_shapes.USER_PATHS` (``user``: all ten). The draws are
 reproducible (``--seed``); the first start is the unperturbed one. About half a run's flight
 time per run on 2 workers.
 
@@ -30,8 +30,8 @@ import multiprocessing as mp
 import time
 from pathlib import Path
 
-from flapsim.bird.paths import USER_PATHS
-from flapsim.io import write_json
+from flapsim.bird.tasks.path_shapes import USER_PATHS
+from flapsim.core.io import write_json
 
 _PATCHED: set[str] = set()
 
@@ -54,7 +54,7 @@ def _fly(job: tuple[str, float, dict, tuple[str, ...]]) -> dict:
     # the start's forward speed changed by dv: the speed, not the direction
     opt = scenarios.EvalOptions(**options, start_speed_change=dv)
     if name in USER_PATHS:
-        from flapsim.bird.tasks import Task
+        from flapsim.bird.tasks.flight_tasks import Task
         from flapsim.scenarios.flight import _fly_task  # the options applied as eval applies them
 
         t = _fly_task(Task(USER_PATHS[name]()), opt, False)

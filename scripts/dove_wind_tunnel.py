@@ -6,7 +6,7 @@ coefficient table; and each table's static L/D at 10, 20, 30 deg.
 
 Measure weight support here before free flight (REFERENCE_DATA). Thrust > 0 means the
 flapping wings out-pull their own drag and the body's (the trunk carries bluff-body drag
-polygons, ``flapsim.bird.flight.body_polygons``).
+polygons, ``flapsim.bird.flight.dove_flight.body_polygons``).
 
 Cycle L/D: the lift terms over the drag terms of every feather polygon, as magnitudes
 summed over the last cycle (``sum |L_i| / sum |D_i|``): the force-weighted mean L/D the
@@ -20,11 +20,11 @@ import argparse
 import mujoco
 import numpy as np
 
-from flapsim.bird.flight import BODY_TABLE, DoveFlight, FlightConfig, wind_tunnel
-from flapsim.bird.model import Dove, DoveParams, build_xml
-from flapsim.bird.wingbeat import control_table, p0, reference_wingbeat, with_tail_bias
+from flapsim.bird.body.model import Dove, DoveParams, build_xml
+from flapsim.bird.flight.dove_flight import BODY_TABLE, DoveFlight, FlightConfig, wind_tunnel
+from flapsim.bird.flight.wingbeat import control_table, p0, reference_wingbeat, with_tail_bias
+from flapsim.core.loading import load_model
 from flapsim.fluid.coefficients import get_table
-from flapsim.sim.loading import load_model
 
 TABLES = ("dickinson1999_profile", "dickinson1999_lowdrag", "dickinson1999", "wang2004",
           "feather_stall", "flat_plate")
@@ -33,7 +33,7 @@ TABLES = ("dickinson1999_profile", "dickinson1999_lowdrag", "dickinson1999", "wa
 def cycle_lift_to_drag(params: DoveParams, p: np.ndarray, speed: float, pitch_deg: float,
                        table: str, cycles: int = 3) -> float:
     """Feathers' sum |lift| / sum |drag| over the last of ``cycles`` wingbeats, welded trunk
-    (the same set-up as :func:`flapsim.bird.flight.wind_tunnel`)."""
+    (the same set-up as :func:`flapsim.bird.flight.dove_flight.wind_tunnel`)."""
     model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg), is_xml=True)
     fl = DoveFlight(Dove.from_model(model, params), reference_wingbeat(), table,
                     (-speed, 0.0, 0.0), use_rollout=False)
@@ -88,7 +88,7 @@ def main() -> None:
                              f"{r.thrust_per_weight:+.2f} L/D {ld:4.2f}")
             print(f"  pitch {pitch:4.1f} deg: " + " | ".join(cells))
     if args.json:
-        from flapsim.io import write_json
+        from flapsim.core.io import write_json
 
         write_json(args.json, {"wingbeat": "P0 + 17 deg tail bias", "runs": rows})
 

@@ -9,7 +9,7 @@ every candidate is a wingbeat it could draw).
 
 Each candidate is flown free, repeated ``--wingbeats`` times from the standard cruise start
 (level, at ``--speed``), and measured over wingbeats ``--skip``.. by
-:func:`flapsim.bird.power.wingbeat_balance`: the servos' mean power (generalized actuator
+:func:`flapsim.bird.flight.power.wingbeat_balance`: the servos' mean power (generalized actuator
 force times the step's mean velocity), its climb and acceleration rates, its pitch and its
 heading per wingbeat. A search finds what is possible, not a bound on it.
 
@@ -46,10 +46,10 @@ import time
 
 import numpy as np
 
-from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.model import MIRROR_PERM, Dove
-from flapsim.bird.power import wingbeat_balance
-from flapsim.bird.wingbeat import N_PARAMS, p0, with_tail_bias
+from flapsim.bird.body.model import MIRROR_PERM, Dove
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.power import wingbeat_balance
+from flapsim.bird.flight.wingbeat import N_PARAMS, p0, with_tail_bias
 
 #: The searched parameters: (scale, translation) of the left wing's six DOF and the tail's
 #: two, and the timewarp.
@@ -59,9 +59,9 @@ FREE = np.array([i for j in (*range(6), 12, 13) for i in (2 * j, 2 * j + 1)] + [
 def capture_spread() -> np.ndarray:
     """Each parameter's standard deviation over the capture cycles (fitted against the
     reference), the unit of the search's bounds."""
-    from flapsim.bird.capture import reference_capture
-    from flapsim.bird.sampling import capture_wingbeats
-    from flapsim.bird.wingbeat import reference_wingbeat
+    from flapsim.bird.flight.capture import reference_capture
+    from flapsim.bird.flight.wingbeat import reference_wingbeat
+    from flapsim.bird.training.sampling import capture_wingbeats
 
     return capture_wingbeats(reference_capture(), reference_wingbeat()).dP.std(0)
 
@@ -123,8 +123,8 @@ def _evaluate(x: np.ndarray, objective: str, wingbeats: int, skip: int,
 def main() -> None:
     from scipy.optimize import differential_evolution
 
-    from flapsim.environment import versions
-    from flapsim.io import write_json
+    from flapsim.core.environment import versions
+    from flapsim.core.io import write_json
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb", "steer"), default="cruise")

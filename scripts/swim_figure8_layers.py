@@ -17,10 +17,10 @@ import json
 from flapsim.scenarios import get
 from flapsim.scenarios.swim import _metrics
 from flapsim.swim.continuous import HandRuleParams
-from flapsim.swim.cycle import load_table
+from flapsim.swim.goals import figure_eight
+from flapsim.swim.per_cycle import load_table
 from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import load_stroke
-from flapsim.swim.targets import figure_eight
 
 
 def figure8_setup(a: argparse.Namespace) -> tuple:

@@ -1,5 +1,5 @@
 """Solve the treading stroke's sculling keys by inverse kinematics and print them as
-stroke-file TOML (pasted into flapsim/swim/strokes/treading.toml).
+stroke-file TOML (pasted into flapsim/swim/data/strokes/treading.toml).
 
 The scull: both arms out to the sides, nearly straight, ``elev`` degrees below the
 horizontal, sweeping forwards and backwards ``amp`` degrees about the side direction

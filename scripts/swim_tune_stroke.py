@@ -28,7 +28,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from flapsim.io import atomic_path
+from flapsim.core.io import atomic_path
 from flapsim.swim.strokes import parse_stroke, stroke_path
 
 # (kind, dof, index, half-width [deg]); kinds: "key" moves one keyframe value, "all"
@@ -126,7 +126,7 @@ RANGES = {"elbow_l.flex": (0.0, 150.0), "elbow_l.pronation": (-90.0, 90.0),
 def _evaluate(args: tuple) -> tuple[float, dict]:
     raw, seconds, head_min, power_cap, drift_weight, objective, breathe, breath_height = args
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from flapsim.errors import FlapsimError
+    from flapsim.core.errors import FlapsimError
     from flapsim.swim.simulate import swim
 
     try:

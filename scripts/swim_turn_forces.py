@@ -24,8 +24,8 @@ import numpy as np
 from swim_figure8_layers import figure8_setup  # scripts/ is on sys.path when run as a script
 
 from flapsim.swim.continuous import HandRuleParams
+from flapsim.swim.goals import figure_eight
 from flapsim.swim.simulate import swim
-from flapsim.swim.targets import figure_eight
 
 ARMS = ("upper_arm_l", "forearm_l", "hand_l", "upper_arm_r", "forearm_r", "hand_r")
 

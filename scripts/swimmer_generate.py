@@ -198,7 +198,7 @@ def build(lung_l: float = LUNG_L) -> str:
   Built standing (x anterior, y left, z up). Zero pose: arms hanging with palms facing the
   thighs, legs straight, feet at right angles. PD muscles: one motor per DOF (ctrl = torque,
   clipped at approximate maximal joint torques); the PD's velocity gain is the joint
-  damping (integrated implicitly), flapsim.swim.pd supplies kp (qd - q) + kv qd'. -->
+  damping (integrated implicitly), flapsim.swim.muscles supplies kp (qd - q) + kv qd'. -->
 <mujoco model="swimmer">
   <compiler angle="degree" autolimits="true"/>
   <option timestep="0.004" integrator="implicitfast" gravity="0 0 -9.81"/>

@@ -10,7 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from flapsim.sim.callbacks import DISPATCHER
+# flapsim leaves MUJOCO_GL alone; the offscreen tests need a backend chosen before mujoco loads
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"
+
+from flapsim.core.callbacks import DISPATCHER
 
 
 @pytest.fixture(autouse=True)
@@ -147,7 +151,7 @@ def sigterm_with_workers():
             return False
 
     def run(args: list[str], cwd: Path, settle_s: float) -> tuple[int, str, list[str]]:
-        proc = subprocess.Popen([sys.executable, "-m", "flapsim.cli", *args], cwd=cwd,
+        proc = subprocess.Popen([sys.executable, "-m", "flapsim.cli.main", *args], cwd=cwd,
                                 env=dict(os.environ, PYTHONPATH=str(root)),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:

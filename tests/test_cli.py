@@ -6,11 +6,11 @@ import sys
 
 import pytest
 
-from flapsim.cli import COMMANDS, main
+from flapsim.cli.main import COMMANDS, main
 
 
 def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "flapsim.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "flapsim.cli.main", *args], capture_output=True,
                           text=True, timeout=300)
 
 

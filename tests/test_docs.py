@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from flapsim.cli import build_parser
+from flapsim.cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]

@@ -8,8 +8,9 @@ import mujoco
 import numpy as np
 import scipy
 
-from flapsim import __version__, cli, environment
-from flapsim.commands import eval as eval_cmd
+from flapsim import __version__, cli
+from flapsim.cli.commands import eval as eval_cmd
+from flapsim.core import environment
 from flapsim.scenarios import EvalOptions
 
 

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError
-from flapsim.io import atomic_path, save_npz, write_json
+from flapsim.core.errors import InputError
+from flapsim.core.io import atomic_path, save_npz, write_json
 
 
 def test_write_json_converts_numpy_and_nan(tmp_path):
@@ -51,8 +51,9 @@ def test_a_signal_right_after_the_temporary_is_made_leaves_no_file(tmp_path, mon
     # machine): the CLI's handler holds it until the name is kept, then it is raised
     import tempfile
 
-    from flapsim import cli, interrupts
-    from flapsim.io import atomic_path
+    from flapsim import cli
+    from flapsim.core import interrupts
+    from flapsim.core.io import atomic_path
 
     real = tempfile.mkstemp
 

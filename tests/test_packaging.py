@@ -1,4 +1,4 @@
-"""The wheel ships the asset folders and flapsim.assets finds them from an installed layout."""
+"""The wheel ships the asset folders and flapsim.core.assets finds them from an installed layout."""
 
 import subprocess
 import sys
@@ -33,8 +33,8 @@ def test_installed_layout_loads_every_bundled_model(wheel, tmp_path):
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
     code = (
-        "import mujoco, flapsim.assets as a\n"
-        "from flapsim.sim.loading import load_model\n"
+        "import mujoco, flapsim.core.assets as a\n"
+        "from flapsim.core.loading import load_model\n"
         f"assert str(a.asset_dir('bird_mjcf')).startswith({str(site)!r}), a.asset_dir('bird_mjcf')\n"
         "n = 0\n"
         "for folder, paths in a.bundled_models().items():\n"

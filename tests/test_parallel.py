@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from flapsim.bird._testing import FakeConfig, FakeWorker
-from flapsim.errors import InputError
-from flapsim.parallel import ChunkExecutor
+from flapsim.bird.training.fake_worker import FakeConfig, FakeWorker
+from flapsim.core.errors import InputError
+from flapsim.core.parallel import ChunkExecutor
 
 CHUNKS = [(k * 5, (k + 1) * 5) for k in range(12)]
 
@@ -87,13 +87,12 @@ def test_bad_arguments_and_missing_ray(monkeypatch):
 
 
 def test_a_signal_python_dropped_is_raised_while_a_chunk_runs():
-    # a KeyboardInterrupt Python printed and dropped (flapsim.interrupts) is raised while the
+    # a KeyboardInterrupt Python printed and dropped (flapsim.core.interrupts) is raised while the
     # pool waits, not when the running chunk (20 s here, minutes for a suite's flight) ends
     import threading
     import time
 
-    from flapsim import interrupts
-
+    from flapsim.core import interrupts
     timer = threading.Timer(0.5, interrupts.record, (KeyboardInterrupt,))
     t0 = time.monotonic()
     with pytest.raises(KeyboardInterrupt):

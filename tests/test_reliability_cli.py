@@ -21,7 +21,7 @@ NO_GL_LIBS = "import ctypes.util; ctypes.util.find_library = lambda name: None; 
 def run_cli(*args, env=None, cwd=None, timeout=120, pre=""):
     e = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     e.update(env or {})
-    code = pre + "import sys; from flapsim.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = pre + "import sys; from flapsim.cli.main import main; sys.exit(main(sys.argv[1:]))"
     return subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
                           text=True, timeout=timeout, env=e, cwd=cwd)
 
@@ -73,7 +73,7 @@ def test_outputs_are_checked_before_simulating(tmp_path, capsys, monkeypatch):
         raise AssertionError("simulated before checking the outputs")
 
     monkeypatch.setattr(sim, "swim", no_swim)
-    monkeypatch.setattr("flapsim.commands.swim.swim", no_swim)
+    monkeypatch.setattr("flapsim.cli.commands.swim.swim", no_swim)
     one_line_error(capsys, cli.main(["swim", "--json", str(tmp_path / "no" / "s.json")]),
                    "does not exist")
     one_line_error(capsys, cli.main(["swim", "--json", str(tmp_path)]), "is a folder")
@@ -149,7 +149,7 @@ def test_a_bad_mujoco_gl_breaks_only_rendering(value, tmp_path):
 
 
 def test_gl_problem_names_the_missing_library():
-    from flapsim.validate import gl_problem
+    from flapsim.core.validate import gl_problem
 
     assert gl_problem("egl", find_library=lambda name: "libEGL.so.1") is None
     assert "libOSMesa" in gl_problem("osmesa", find_library=lambda name: None)
@@ -167,7 +167,7 @@ class _FakeResult:
 
 def test_sweep_exits_1_when_a_run_failed_and_still_writes_everything(tmp_path, monkeypatch, capsys):
     import flapsim.swim.simulate as sim
-    from flapsim.errors import SimulationError
+    from flapsim.core.errors import SimulationError
 
     def fake_swim(stroke, seconds, params, **kw):
         if params.water_density == 1100.0:
@@ -192,7 +192,7 @@ def test_a_signal_while_rendering_leaves_no_file(sig, status, tmp_path):
     import signal
     import time
 
-    cmd = [sys.executable, "-m", "flapsim.cli", "modes", str(ROOT / "creatures" / "loop.xml"),
+    cmd = [sys.executable, "-m", "flapsim.cli.main", "modes", str(ROOT / "creatures" / "loop.xml"),
            "--video", "x.mp4", "--cycles", "50", "--json", "x.json"]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
@@ -222,8 +222,8 @@ def test_a_signal_python_dropped_still_stops_the_render(tmp_path):
     # it at the next frame, leaving no file
     import mujoco
 
-    from flapsim import interrupts
-    from flapsim.render import render_video
+    from flapsim.core import interrupts
+    from flapsim.render.video import render_video
 
     model = mujoco.MjModel.from_xml_string(
         "<mujoco><worldbody><body><freejoint/><geom size='0.1'/></body></worldbody></mujoco>")
@@ -247,7 +247,7 @@ def test_a_dropped_sigterm_stops_every_frame_loop(tmp_path):
     # after SIGTERM, its `Terminated` printed and dropped in logging's at-fork hook, and the
     # test above timed out. Each frame loop that writes a video raises it at the next frame:
     # the modal writer, and the per-frame callback the swimmer's loop is handed
-    from flapsim import interrupts
+    from flapsim.core import interrupts
     from flapsim.modal.video import write_frames
 
     frames = (np.zeros((16, 16, 3), np.uint8) for _ in range(40))
@@ -273,8 +273,7 @@ def test_a_signal_inside_a_frame_is_raised_after_the_writer_returns():
     # write), it left ffmpeg unstopped or killed without a wait, and ffmpeg created the
     # temporary video again after the cleanup (1 of 40 SIGTERMs on a loaded machine; once in a
     # test run with three jobs on two cores): every frame holds the signal until it returns
-    from flapsim import interrupts
-
+    from flapsim.core import interrupts
     done = []
 
     def frame_in_writer(frame):
@@ -301,7 +300,7 @@ def test_a_video_interrupted_mid_way_closes_ffmpeg_before_the_cleanup(tmp_path, 
     # temporary still exists, so the cleanup removes what ffmpeg wrote
     import imageio.v2 as imageio
 
-    from flapsim import interrupts
+    from flapsim.core import interrupts
     from flapsim.modal.video import write_frames
 
     closed = []
@@ -393,9 +392,9 @@ def test_a_bad_stroke_file_is_one_line_before_swimming(tmp_path, capsys):
 def test_sweep_and_swim_accept_the_same_values():
     import argparse
 
-    from flapsim.errors import InputError
+    from flapsim.core.errors import InputError
+    from flapsim.core.validate import RANGES, quantity
     from flapsim.swim.sweep import PARAMETERS, sweep
-    from flapsim.validate import RANGES, quantity
 
     for name, (_, unit, (lo, hi)) in PARAMETERS.items():
         assert (lo, hi, unit) == (RANGES[name].lo, RANGES[name].hi, RANGES[name].unit)
@@ -410,8 +409,8 @@ def test_sweep_and_swim_accept_the_same_values():
 def test_uniform_stiffness_leaves_a_planar_root_alone():
     # slide x, slide z, hinge y on a body attached to the world float the root; the
     # elbow is a real joint: --stiffness springs it and nothing else
+    from flapsim.core.loading import load_model
     from flapsim.modal.analysis import analyze, fix_root
-    from flapsim.sim.loading import load_model
 
     m = load_model("""<mujoco><worldbody><body name="root">
       <joint name="x" type="slide" axis="1 0 0"/><joint name="z" type="slide" axis="0 0 1"/>

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from flapsim.errors import FlapsimError
+from flapsim.core.errors import FlapsimError
 
 FAST = settings(max_examples=40, deadline=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
@@ -109,7 +109,7 @@ def test_bad_stroke_files_name_the_problem(tmp_path, data, fragment):
     assert fragment in str(info.value)
 
 
-# -- flight path files (flapsim.bird.path) ----------------------------------------------
+# -- flight path files (flapsim.bird.tasks.path_control) ----------------------------------------------
 
 # Any float (NaN/inf, 1e300, and junk): FlightPath bounds coordinates and length (a 4.6e8 m
 # path once asked numpy for a 69 GB sample array, a 1e300 m one raised scipy's ValueError).
@@ -123,7 +123,7 @@ coords = st.one_of(st.floats(), st.sampled_from([math.nan, math.inf, -math.inf, 
 @given(rows=st.lists(st.lists(num_text, min_size=0, max_size=4), max_size=6),
        header=st.sampled_from(["x,y,z", "x,y", "a,b,c", ""]))
 def test_flight_path_csv(tmp_path, rows, header):
-    from flapsim.bird.path import FlightPath, load_path
+    from flapsim.bird.tasks.path_control import FlightPath, load_path
 
     f = tmp_path / "p.csv"
     f.write_text(header + "\n" + "\n".join(",".join(r) for r in rows) + "\n")
@@ -146,7 +146,7 @@ def test_flight_path_csv(tmp_path, rows, header):
 def test_flight_path_json(tmp_path, data):
     import json
 
-    from flapsim.bird.path import FlightPath, load_path
+    from flapsim.bird.tasks.path_control import FlightPath, load_path
 
     f = tmp_path / "p.json"
     f.write_text(json.dumps(data))
@@ -158,14 +158,14 @@ def test_flight_path_json(tmp_path, data):
     assert isinstance(p, FlightPath) and np.all(np.isfinite(p.points))
 
 
-# -- swim path files (flapsim.swim.targets) ---------------------------------------------
+# -- swim path files (flapsim.swim.goals) ---------------------------------------------
 
 @FAST
 @given(data=st.one_of(st.binary(max_size=120),
                       st.lists(st.lists(num_text, max_size=3), max_size=6).map(
                           lambda rows: "\n".join(", ".join(r) for r in rows).encode())))
 def test_swim_path_files(tmp_path, data):
-    from flapsim.swim.targets import load_path
+    from flapsim.swim.goals import load_path
 
     f = tmp_path / "p.txt"
     f.write_bytes(data)
@@ -177,10 +177,10 @@ def test_swim_path_files(tmp_path, data):
     assert np.all(np.isfinite(p.points)) and len(p.points) >= 2
 
 
-# -- capture files (flapsim.bird.capture) -----------------------------------------------
+# -- capture files (flapsim.bird.flight.capture) -----------------------------------------------
 
 def _capture_csv(n_frames: int, columns_cut: int, bad_cell: str | None, dt: float) -> str:
-    from flapsim.bird.model import DOF_NAMES
+    from flapsim.bird.body.model import DOF_NAMES
 
     cols = ["time_s"] + [f"{n}_deg" for n in DOF_NAMES]
     cols = cols[: len(cols) - columns_cut]
@@ -201,7 +201,7 @@ def _capture_csv(n_frames: int, columns_cut: int, bad_cell: str | None, dt: floa
        bad=st.one_of(st.none(), st.sampled_from(["nan", "abc", "", "1e999", "1,2"])),
        dt=st.sampled_from([1 / 240, 0.0, -0.01]))
 def test_capture_csv(tmp_path, n_frames, cut, bad, dt):
-    from flapsim.bird.capture import CaptureSet, load_capture
+    from flapsim.bird.flight.capture import CaptureSet, load_capture
 
     f = tmp_path / "c.csv"
     f.write_text(_capture_csv(n_frames, cut, bad, dt))
@@ -220,7 +220,7 @@ def test_capture_csv(tmp_path, n_frames, cut, bad, dt):
                                        b"Zrotation Xrotation Yrotation\n}\nMOTION\nFrames: 2\n"
                                        b"Frame Time: 0.004\n1 2 3\n4 5 6\n"])))
 def test_capture_bvh(tmp_path, data):
-    from flapsim.bird.capture import load_capture
+    from flapsim.bird.flight.capture import load_capture
 
     f = tmp_path / "c.bvh"
     f.write_bytes(data)
@@ -259,7 +259,7 @@ def test_cli_numbers_parse_or_exit_2_in_one_line(text, option, capsys):
 
 
 def test_the_range_types_agree_with_their_ranges():
-    from flapsim.validate import RANGES, quantity
+    from flapsim.core.validate import RANGES, quantity
 
     for name, r in RANGES.items():
         parse = quantity(name)

@@ -10,10 +10,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from flapsim.core.callbacks import DISPATCHER
+from flapsim.core.loading import load_model
 from flapsim.fluid.flow import FlowField, Uniform
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
-from flapsim.sim.callbacks import DISPATCHER
-from flapsim.sim.loading import load_model
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -57,7 +57,7 @@ def test_friction_respects_the_free_surface_cut():
 
 
 def test_write_json_is_atomic(tmp_path, monkeypatch):
-    from flapsim.io import write_json
+    from flapsim.core.io import write_json
 
     target = tmp_path / "r.json"
     write_json(target, {"v": 1})
@@ -133,7 +133,7 @@ def test_non_finite_forces_are_not_applied():
     verts = np.array([[[-.1, -.1, 0], [.1, -.1, 0], [.1, .1, 0], [-.1, .1, 0]]])
     sf = SurfaceForces(m, PolygonSet.from_polygons(1, verts), ["flat_plate"], FluidParams(1.225),
                        FlowField([Uniform((2.0, 0, 0))]))
-    from flapsim.errors import ProviderError
+    from flapsim.core.errors import ProviderError
 
     with sf.register(d):
         mujoco.mj_forward(m, d)

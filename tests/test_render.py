@@ -10,9 +10,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError
-from flapsim.render import ChaseCamera, render_video
-from flapsim.sim.loading import load_model
+from flapsim.core.errors import InputError
+from flapsim.core.loading import load_model
+from flapsim.render.video import ChaseCamera, render_video
 
 XML = """<mujoco><visual><global offwidth="320" offheight="240"/></visual><worldbody>
 <geom type="plane" size="5 5 .1"/><body name="ball" pos="0 0 .5"><freejoint/>
@@ -51,8 +51,8 @@ AFTER_PYVISTA = """
 import numpy as np
 from flapsim.modal.browser import contact_sheet
 from flapsim.modal.gaits import GAITS, plan_gait, resolve_model
-from flapsim.render import render_video
-from flapsim.sim.loading import load_model
+from flapsim.render.video import render_video
+from flapsim.core.loading import load_model
 m = load_model(XML, is_xml=True)
 frames = np.tile(m.qpos0, (3, 1))
 render_video(m, frames, OUT + "/a.mp4", fps=10, width=160, height=120, progress=False)

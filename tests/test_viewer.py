@@ -1,4 +1,4 @@
-"""The shared viewer's mouse clicks (flapsim.viewer), without a window: MuJoCo's selection
+"""The shared viewer's mouse clicks (flapsim.render.viewer), without a window: MuJoCo's selection
 (body and the point in its frame) is turned into a world point and consumed."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 
-from flapsim.viewer import AnimalViewer
+from flapsim.render.viewer import AnimalViewer
 
 XML = """<mujoco><worldbody>
   <geom type="plane" size="5 5 0.1"/>

@@ -35,9 +35,9 @@ import mujoco
 import numpy as np
 from numba import njit
 
-from flapsim.errors import InputError, ModelError
-from flapsim.sim.callbacks import CompiledProvider, Registration, register, register_kernel
-from flapsim.sim.wrench import add_force, body_point
+from flapsim.core.callbacks import CompiledProvider, Registration, register, register_kernel
+from flapsim.core.errors import InputError, ModelError
+from flapsim.core.wrench import add_force, body_point
 
 METHODS = ("exact", "linear")
 _OUT = 4  # floats reported per ellipsoid: submerged volume, centre of buoyancy xyz

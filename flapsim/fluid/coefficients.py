@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 
 N_SAMPLES = 361
 AOA_DEG = np.linspace(0.0, 180.0, N_SAMPLES)

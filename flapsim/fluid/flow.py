@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 
 ROW = 12  # floats per packed primitive: kind + 11 parameters
 UNIFORM, GUST, BREEZE, SOURCE, VORTEX = 0, 1, 2, 3, 4

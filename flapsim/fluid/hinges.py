@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 from numba import njit
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError
 
 HI = 4  # ints per hinge: body, qpos address, dof address, its diagonal in data.M
 HF = 18  # floats per hinge: axis, origin, mass, com, inertia (6), stop low, stop high

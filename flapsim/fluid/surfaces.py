@@ -38,7 +38,15 @@ import mujoco
 import numpy as np
 from numba import njit
 
-from flapsim.errors import InputError
+from flapsim.core.callbacks import (
+    CompiledProvider,
+    Registration,
+    register,
+    register_kernel,
+    time_view,
+)
+from flapsim.core.errors import InputError
+from flapsim.core.wrench import add_force, body_point, body_vector, map_wrenches
 from flapsim.fluid.coefficients import CoefficientTable, get_table
 from flapsim.fluid.flow import FlowField, flow_at
 from flapsim.fluid.hinges import (
@@ -52,14 +60,6 @@ from flapsim.fluid.hinges import (
     hinged_vector,
     integrator_damping,
 )
-from flapsim.sim.callbacks import (
-    CompiledProvider,
-    Registration,
-    register,
-    register_kernel,
-    time_view,
-)
-from flapsim.sim.wrench import add_force, body_point, body_vector, map_wrenches
 
 RECORD = 16  # floats recorded per polygon by evaluate(): see SurfaceReport
 QFRC_ARG = 26  # surface_kernel's qfrc argument, counted after ``w``

@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 import scipy.linalg
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError
 
 log = logging.getLogger(__name__)
 

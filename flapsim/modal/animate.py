@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError
-from flapsim.io import save_npz
+from flapsim.core.errors import InputError
+from flapsim.core.io import save_npz
 from flapsim.modal.analysis import ExtraConstraint
 
 log = logging.getLogger(__name__)

@@ -28,8 +28,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError
-from flapsim.io import atomic_path
+from flapsim.core.errors import InputError
+from flapsim.core.io import atomic_path
 from flapsim.modal.animate import Component, SoftLimits, animate
 from flapsim.modal.gaits import GaitPlan, gait, plan_gait, resolve_model, rotation_normalized_shape
 

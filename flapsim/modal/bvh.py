@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from flapsim.errors import DataFileError, InputError, ModelError
-from flapsim.io import atomic_path
+from flapsim.core.errors import DataFileError, InputError, ModelError
+from flapsim.core.io import atomic_path
 
 _AXES = {0: "X", 1: "Y", 2: "Z"}
 

@@ -43,11 +43,11 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
-from flapsim.assets import asset_path
-from flapsim.errors import InputError, SimulationError
+from flapsim.core.assets import asset_path
+from flapsim.core.errors import InputError, SimulationError
+from flapsim.core.loading import load_model
 from flapsim.modal.analysis import ModalAnalysis, analyze
 from flapsim.modal.dynamic import ModalController, two_mode_drives
-from flapsim.sim.loading import load_model
 
 log = logging.getLogger(__name__)
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError
 from flapsim.modal.analysis import ModalAnalysis, _actuator_moment
 
 log = logging.getLogger(__name__)

@@ -35,8 +35,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from flapsim.assets import asset_path
-from flapsim.errors import InputError
+from flapsim.core.assets import asset_path
+from flapsim.core.errors import InputError
+from flapsim.core.loading import load_model
 from flapsim.modal.analysis import ExtraConstraint, ModalAnalysis, analyze, fix_body_orientation
 from flapsim.modal.animate import Component
 from flapsim.modal.heuristics import (
@@ -46,7 +47,6 @@ from flapsim.modal.heuristics import (
     rigid_component,
     score_modes,
 )
-from flapsim.sim.loading import load_model
 
 log = logging.getLogger(__name__)
 

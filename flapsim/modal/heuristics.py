@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError
 from flapsim.modal.analysis import ModalAnalysis
 
 log = logging.getLogger(__name__)

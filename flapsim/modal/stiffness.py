@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError, SimulationError
+from flapsim.core.errors import InputError, SimulationError
 from flapsim.modal.analysis import rest_pose
 
 log = logging.getLogger(__name__)

@@ -15,8 +15,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError, ModelError
-from flapsim.io import atomic_video
+from flapsim.core.errors import InputError, ModelError
+from flapsim.core.io import atomic_video
 from flapsim.modal.analysis import ModalAnalysis, integrate_displacement
 
 log = logging.getLogger(__name__)
@@ -59,7 +59,7 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
     width = min(width, int(model.vis.global_.offwidth))
     height = min(height, int(model.vis.global_.offheight))
     try:
-        from flapsim.render import new_renderer
+        from flapsim.render.video import new_renderer
 
         return new_renderer(model, height, width)
     except Exception as exc:  # GL backends raise assorted types
@@ -102,7 +102,7 @@ def render_poses(
     track: bool = False,
 ) -> int:
     """Render a sequence of poses (nq each) to a video; ``track`` follows the centre of mass."""
-    from flapsim.validate import require_gl
+    from flapsim.core.validate import require_gl
 
     if len(poses) == 0:
         raise InputError("no frames to render")

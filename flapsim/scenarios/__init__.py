@@ -11,9 +11,9 @@ A runner returns a JSON-able dict with at least::
      "metrics": {name: number, ...}, "files": [paths written]}
 
 :func:`run_scenario` adds the name, family, wall time, and turns a
-:class:`~flapsim.errors.FlapsimError` (bad database, diverged simulation) into a failed
+:class:`~flapsim.core.errors.FlapsimError` (bad database, diverged simulation) into a failed
 result with its one-line reason, so that one broken run never hides the others.
-:class:`EvalWorker` runs scenarios on :class:`flapsim.parallel.ChunkExecutor` (chunk i =
+:class:`EvalWorker` runs scenarios on :class:`flapsim.core.parallel.ChunkExecutor` (chunk i =
 the i-th (name, options) pair of its list), the same executor as training: local
 processes or Ray.
 """
@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from flapsim.errors import FlapsimError, InputError
+from flapsim.core.errors import FlapsimError, InputError
 
 #: The modules that register scenarios, in listing order.
 FAMILY_MODULES: tuple[str, ...] = ("flapsim.scenarios.flight", "flapsim.scenarios.swim")
@@ -61,55 +61,55 @@ class EvalOptions:
     k: int | None = None
     k_dense: int | None = None
     """Flight: LWLR's neighbours among densely packed samples, growing to ``k`` among sparse
-    ones (None: the dove's default, :data:`flapsim.bird.regression.DEFAULT_K_DENSE_SHARE`;
+    ones (None: the dove's default, :data:`flapsim.bird.control.regression.DEFAULT_K_DENSE_SHARE`;
     0: always ``k``)."""
     mirror: bool = True
     """Flight: the regression also searches the samples' mirror images."""
     carry: float | None = None
     """Flight: the share of the last wingbeat's change the next one starts from (None: the
-    controller's default, :data:`flapsim.bird.controller.DEFAULT_CARRY`; 0: the paper's)."""
+    controller's default, :data:`flapsim.bird.control.controller.DEFAULT_CARRY`; 0: the paper's)."""
     refine: int | None = None
     """Flight: simulated corrections per wingbeat (None: the controller's default,
-    :data:`flapsim.bird.controller.DEFAULT_REFINE`; 0: the regression's answer flown as it
+    :data:`flapsim.bird.control.controller.DEFAULT_REFINE`; 0: the regression's answer flown as it
     is, the paper's)."""
     refine_goal: str | None = None
     """Flight: what the corrections aim at, ``reachable`` or ``full`` (None: the controller's
-    default, :data:`flapsim.bird.controller.DEFAULT_REFINE_GOAL`)."""
+    default, :data:`flapsim.bird.control.controller.DEFAULT_REFINE_GOAL`)."""
     clip_request: float = 0.02
     """Flight: the regression clips each requested dS component to these quantiles of the
     database's (0: no clip; the default is
-    :data:`flapsim.bird.regression.DEFAULT_CLIP_REQUEST`)."""
+    :data:`flapsim.bird.control.regression.DEFAULT_CLIP_REQUEST`)."""
     state_weight: float = 0.0
     """Flight: weight of the wingbeat's start state in the regression's neighbour search (0: dS
     only, the paper's)."""
     predict: str = "simulate"
-    """Flight: how the controller finds S0 (:func:`flapsim.bird.controller.load_controller`)."""
+    """Flight: how the controller finds S0 (:func:`flapsim.bird.control.controller.load_controller`)."""
     lookahead: str = "off"
     """Flight: the next wingbeat's reference simulated in a second thread (``auto``, ``on``,
-    ``off``: :func:`flapsim.bird.controller.load_controller`); changes the wall time only, so
+    ``off``: :func:`flapsim.bird.control.controller.load_controller`); changes the wall time only, so
     a journal's runs are resumed whatever it is."""
     bank_lead_s: float | None = None
     """Flight: the path target asks the bank this long ahead, s (None: the dove's default,
-    :data:`flapsim.bird.tasks.DEFAULT_BANK_LEAD_S`; 0: at the wingbeat's end, the paper's)."""
+    :data:`flapsim.bird.tasks.flight_tasks.DEFAULT_BANK_LEAD_S`; 0: at the wingbeat's end, the paper's)."""
     speed: float | None = None
     """Flight: the speed asked of every flight, m/s (None: each task's own, 7)."""
     max_bank_deg: float | None = None
     """Flight: the largest bank the path target asks, deg (None: the dove's default,
-    :data:`flapsim.bird.tasks.DEFAULT_MAX_BANK_DEG`: 60 rigid, 45 modal)."""
+    :data:`flapsim.bird.tasks.flight_tasks.DEFAULT_MAX_BANK_DEG`: 60 rigid, 45 modal)."""
     aoa_per_g_deg: float | None = None
     """Flight: the path target asks this much more angle of attack per g of a turn's load
-    factor, deg (None: the dove's default, :data:`flapsim.bird.tasks.DEFAULT_AOA_PER_G_DEG`)."""
+    factor, deg (None: the dove's default, :data:`flapsim.bird.tasks.flight_tasks.DEFAULT_AOA_PER_G_DEG`)."""
     climb_per_speed_deficit: float | None = None
     """Flight: the climb given up per m/s of missing airspeed, rad s/m (None: the dove's
-    default, :data:`flapsim.bird.tasks.DEFAULT_CLIMB_PER_SPEED_DEFICIT`; 0: the paper's)."""
+    default, :data:`flapsim.bird.tasks.flight_tasks.DEFAULT_CLIMB_PER_SPEED_DEFICIT`; 0: the paper's)."""
     turn_load_factor: float | None = None
     """Flight: the speed asked drops ahead of turns needing more than this load factor
-    (None: the task's, 0 = no slowing; :attr:`flapsim.bird.tasks.Task.turn_load_factor`)."""
+    (None: the task's, 0 = no slowing; :attr:`flapsim.bird.tasks.flight_tasks.Task.turn_load_factor`)."""
     turn_speed_floor: float | None = None
     """Flight: the lowest speed asked for a turn, m/s (None: the task's)."""
     start_speed_change: float | None = None
     """Flight: added to each path's start speed, m/s (None: the task's, 0; a perturbation
-    within +-1 m/s for verdict-spread studies, :attr:`flapsim.bird.tasks.Task.start_speed_change`)."""
+    within +-1 m/s for verdict-spread studies, :attr:`flapsim.bird.tasks.flight_tasks.Task.start_speed_change`)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
     feathers: str = "rigid"
@@ -219,7 +219,7 @@ class RunsConfig:
 
 
 class EvalWorker:
-    """A :class:`~flapsim.parallel.ChunkExecutor` worker running scenarios by index."""
+    """A :class:`~flapsim.core.parallel.ChunkExecutor` worker running scenarios by index."""
 
     def __init__(self, config: RunsConfig) -> None:
         self.config = config

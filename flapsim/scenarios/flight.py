@@ -1,7 +1,7 @@
 """The flight paper's evaluation suite (its sec. 7) as scenarios of the shared registry.
 
 Every scenario flies the learned controller (``options.db``, default the bundled
-database) along a path with :func:`flapsim.bird.tasks.fly_task` and reports the paper's
+database) along a path with :func:`flapsim.bird.tasks.flight_tasks.fly_task` and reports the paper's
 Ep, Er, Eo, Ef per wingbeat, whether the bird got lost, and the scenario's own numbers
 (collisions, steering range, the push table, ...). Plots (``options.plots_dir``): the
 path against the flown trajectory in 3D and the metrics per wingbeat; videos
@@ -69,10 +69,10 @@ _TASK_OPTIONS = ("bank_lead_s", "speed", "aoa_per_g_deg", "climb_per_speed_defic
 
 
 def _fly_task(task, opt: EvalOptions, record: bool):
-    """:func:`~flapsim.bird.tasks.fly_task` with the options' controller."""
+    """:func:`~flapsim.bird.tasks.flight_tasks.fly_task` with the options' controller."""
     import dataclasses
 
-    from flapsim.bird.tasks import fly_task
+    from flapsim.bird.tasks.flight_tasks import fly_task
 
     # the path target's options given (None: the task's own), by the same names on both
     given = {name: getattr(opt, name) for name in _TASK_OPTIONS if getattr(opt, name) is not None}
@@ -93,8 +93,8 @@ def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str
         flight_plot(task.path, r, out, title=f"{stem}: {r.status}", forest=task.forest)
         files.append(str(out))
     if opt.video_dir and r.qpos is not None and len(r.qpos):
-        from flapsim.bird.model import Dove
-        from flapsim.bird.video import dove_video
+        from flapsim.bird.body.model import Dove
+        from flapsim.bird.flight.video import dove_video
 
         out = Path(opt.video_dir) / f"{stem}.mp4"
         dove_video(Dove.load(feathers=opt.feathers), r.qpos, out, opt.fps, *opt.size)
@@ -110,16 +110,16 @@ def _result(r, files: list[str], **extra) -> dict:
 # -- path scenarios -------------------------------------------------------------------------
 
 def run_path(sc: Scenario, opt: EvalOptions) -> dict:
-    """Follow ``sc.params['shape']`` (a :mod:`flapsim.bird.paths` function and its
+    """Follow ``sc.params['shape']`` (a :mod:`flapsim.bird.tasks.path_shapes` function and its
     arguments), or the user's ``options.path_file``."""
-    from flapsim.bird import paths
-    from flapsim.bird.path import load_path
-    from flapsim.bird.tasks import Task
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.flight_tasks import Task
+    from flapsim.bird.tasks.path_control import load_path
 
     p = dict(sc.params)
     if p.get("shape") == "file":
         if not opt.path_file:
-            from flapsim.errors import InputError
+            from flapsim.core.errors import InputError
 
             raise InputError("the path scenario needs a path file: flapsim eval --path FILE")
         path = load_path(opt.path_file)
@@ -139,7 +139,7 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         extra.update(_mirror_flight(sc, opt, task, r, files))
     if np.isfinite(geometry.sustained_radius_m):
         # the level turn's load factor at the speed flown: sqrt(1 + (v^2 / (g r))^2)
-        from flapsim.bird.targets import GRAVITY
+        from flapsim.bird.control.targets import GRAVITY
 
         v = opt.speed if opt.speed is not None else task.speed
         extra["sustained_turn_load_factor"] = float(
@@ -148,8 +148,8 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         if opt.feathers == "rigid":
             # what the wing holds there (measured for rigid feathers only): a path that asks
             # more can be followed only by slowing into its turns
-            from flapsim.bird.limits import turn_radius
-            from flapsim.bird.tasks import wing_load_factor
+            from flapsim.bird.flight.limits import turn_radius
+            from flapsim.bird.tasks.flight_tasks import wing_load_factor
 
             n = wing_load_factor(v)
             if n is not None:
@@ -176,7 +176,7 @@ def _mirror_flight(sc: Scenario, opt: EvalOptions, task, r, files: list[str]) ->
     same request). ``files`` gets the mirror flight's."""
     import dataclasses
 
-    from flapsim.bird.path import FlightPath
+    from flapsim.bird.tasks.path_control import FlightPath
 
     mirrored = dataclasses.replace(task, path=FlightPath(np.asarray(task.path.points, float)
                                                          * np.array([1.0, -1.0, 1.0])))
@@ -201,7 +201,7 @@ def _flow(spec) -> tuple:
 
 def capture_steering_range() -> list[float]:
     """Smallest and largest steering per wingbeat in the bundled capture set, deg."""
-    from flapsim.bird.capture import DATA_FILE, load_capture
+    from flapsim.bird.flight.capture import DATA_FILE, load_capture
 
     cap = load_capture(DATA_FILE)
     return [float(np.min(cap.steering_deg)), float(np.max(cap.steering_deg))]
@@ -213,8 +213,8 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
     """Level straight flight pushed once at 1 s, for each force of the table; survived =
     never farther than :data:`PUSH_TUBE_M` from the 60 m path, and back within
     :data:`PUSH_BACK_M` of it at its end."""
-    from flapsim.bird import paths
-    from flapsim.bird.tasks import PushSpec, Task
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.flight_tasks import PushSpec, Task
 
     direction = sc.params["direction"]
     forces = (8.0,) if opt.quick else PUSH_FORCES_N
@@ -250,8 +250,8 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     """A leader on a path and followers on perturbed copies of it (the paper: control points
     moved randomly within 1 m), each flown by its own controller; collisions between birds
     are trunks closer than one span (0.51 m) at the same instant."""
-    from flapsim.bird import paths
-    from flapsim.bird.tasks import Task
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.flight_tasks import Task
 
     p = sc.params
     rng = np.random.default_rng([opt.seed, 7])
@@ -315,7 +315,7 @@ def min_separation(tracks: list[tuple[np.ndarray, np.ndarray]]) -> float:
 def make_forest(path, seed: int, n_trees: int = 60, clearance_m: float = 2.5):
     """Trees on the 50 x 50 m ground around ``path``: random positions (seeded), each kept
     ``clearance_m`` plus its crown from the path, heights 8-15 m."""
-    from flapsim.bird.tasks import Forest, Tree
+    from flapsim.bird.tasks.flight_tasks import Forest, Tree
 
     rng = np.random.default_rng([seed, 263])
     trees, tries = [], 0
@@ -332,9 +332,9 @@ def make_forest(path, seed: int, n_trees: int = 60, clearance_m: float = 2.5):
 
 
 def run_forest(sc: Scenario, opt: EvalOptions) -> dict:
-    from flapsim.bird import paths
-    from flapsim.bird.path import FlightPath
-    from flapsim.bird.tasks import Task
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.flight_tasks import Task
+    from flapsim.bird.tasks.path_control import FlightPath
 
     path = paths.forest_path()
     if opt.quick:  # its first ~60 m

@@ -3,7 +3,7 @@
 
 The journal is ``PATH.partial``: JSON lines, a header naming what was asked (a fingerprint
 of every run's scenario and options, the versions of flapsim and the packages whose numerics
-decide a flight (:func:`flapsim.environment.tag`), and the bytes of each database and path
+decide a flight (:func:`flapsim.core.environment.tag`), and the bytes of each database and path
 file the runs read), then one line per finished run, appended and synced as it arrives.
 A run is deterministic given what the fingerprint covers, so a run read back is the run that
 would be flown again. A line torn by ``kill -9`` is flown again; a journal of other runs (the
@@ -20,8 +20,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from flapsim.errors import InputError
-from flapsim.io import _jsonable, atomic_path
+from flapsim.core.errors import InputError
+from flapsim.core.io import _jsonable, atomic_path
 
 KIND = "flapsim-eval-journal"
 VERSION = 1
@@ -47,7 +47,7 @@ WALL_TIME_ONLY = ("lookahead",)
 
 def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
     """sha256 over what decides the runs' results: each run's scenario name and options
-    (``to_dict()``), ``version`` (the software's: :func:`flapsim.environment.tag`), and the
+    (``to_dict()``), ``version`` (the software's: :func:`flapsim.core.environment.tag`), and the
     content of the database and path file each reads (the bundled database stands for
     ``db=None`` on a flight)."""
     from flapsim.scenarios import get
@@ -69,7 +69,7 @@ def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
             d.pop(k, None)
         db = d.get("db")
         if db is None and get(name).family == "flight":
-            from flapsim.bird.controller import bundled_database_path
+            from flapsim.bird.control.controller import bundled_database_path
 
             db = bundled_database_path(d.get("feathers", "rigid"))
         items.append({"scenario": name, "options": d, "db_sha256": digest(db),

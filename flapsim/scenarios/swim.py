@@ -28,7 +28,7 @@ import numpy as np
 
 from flapsim.scenarios import EvalOptions, Scenario, register
 
-TRAJECTORY_FILE = Path(__file__).resolve().parents[1] / "swim" / "trajectories" / "zigzag.csv"
+TRAJECTORY_FILE = Path(__file__).resolve().parents[1] / "swim" / "data" / "trajectories" / "zigzag.csv"
 #: a cross current's speed in the paper's Fig. 15 task here [m/s]
 CROSS_CURRENT = 0.3
 #: the bound the all-layers mean distance must stay within in the cross current [m]
@@ -45,7 +45,7 @@ def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "",
     with contextlib.ExitStack() as stack:
         on_frame, fps = None, 0.0
         if opt.video_dir:
-            from flapsim.io import atomic_video
+            from flapsim.core.io import atomic_video
 
             out = Path(opt.video_dir) / f"{stem}.mp4"
             on_frame = stack.enter_context(atomic_video(out, fps=opt.fps, codec="libx264",
@@ -84,7 +84,7 @@ def _seconds(sc: Scenario, opt: EvalOptions) -> float:
 
 # ------------------------------------------------------------------ runners
 def figure_eight_runner(sc: Scenario, opt: EvalOptions) -> dict:
-    from flapsim.swim.targets import figure_eight
+    from flapsim.swim.goals import figure_eight
 
     r, files = _swim(sc, opt, figure_eight(sc.params["radius_m"]), _seconds(sc, opt))
     m = _metrics(r)
@@ -101,7 +101,7 @@ def figure_eight_runner(sc: Scenario, opt: EvalOptions) -> dict:
 def chase_runner(sc: Scenario, opt: EvalOptions) -> dict:
     """A (moving) point, optionally across a current: the mean distance within
     ``params['bound_m']``."""
-    from flapsim.swim.targets import Point
+    from flapsim.swim.goals import Point
 
     x, y, vx, vy = sc.params["target"]
     cur = tuple(sc.params.get("current", (0.0, 0.0, 0.0)))
@@ -120,7 +120,7 @@ def chase_runner(sc: Scenario, opt: EvalOptions) -> dict:
 
 
 def trajectory_runner(sc: Scenario, opt: EvalOptions) -> dict:
-    from flapsim.swim.targets import load_trajectory
+    from flapsim.swim.goals import load_trajectory
 
     traj = load_trajectory(str(TRAJECTORY_FILE))
     r, files = _swim(sc, opt, traj, _seconds(sc, opt))
@@ -139,8 +139,8 @@ def dive_runner(sc: Scenario, opt: EvalOptions) -> dict:
     legs up, swim on; breathe in once there). Reached: the head or the pelvis within
     the waypoint radius of the point; surfaced: the head above the water afterwards."""
     from flapsim.swim.dive import SurfaceDive
+    from flapsim.swim.goals import Waypoints
     from flapsim.swim.model import SwimmerParams
-    from flapsim.swim.targets import Waypoints
 
     wp = Waypoints(np.asarray(sc.params["waypoints"], dtype=float), sc.params["radius_m"])
     lungs = sc.params.get("lungs_l", 3.0)
@@ -174,9 +174,9 @@ def dive_runner(sc: Scenario, opt: EvalOptions) -> dict:
 def density_runner(sc: Scenario, opt: EvalOptions) -> dict:
     """The paper's Fig. 16: the moving-target chase in several fluid densities (one
     process: ``flapsim eval`` already runs scenarios in parallel)."""
-    from flapsim.errors import FlapsimError
+    from flapsim.core.errors import FlapsimError
+    from flapsim.swim.goals import Point
     from flapsim.swim.model import SwimmerParams
-    from flapsim.swim.targets import Point
 
     densities = sc.params["quick_densities"] if opt.quick else sc.params["densities"]
     x, y, vx, vy = sc.params["target"]

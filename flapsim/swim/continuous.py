@@ -45,7 +45,7 @@ from dataclasses import asdict, dataclass
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 from flapsim.swim.feedback import wrap_angle
 from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.strokes import HAND_RULES

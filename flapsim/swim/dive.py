@@ -11,7 +11,7 @@ of :func:`flapsim.swim.simulate.swim` (``control_hook``), above the stroke's lay
 2. **Breathe out** to ``exhaled_l`` litres of lung air (1.33 L: body density 1028
    kg/m^3, REFERENCE_DATA's "after exhalation"; the swimmer is then ~2.6 N heavier
    than the sea water it displaces instead of 14 N lighter), and swim the dive
-   (``flapsim/swim/manoeuvres/surface_dive.toml``, one cycle) with the basic layer
+   (``flapsim/swim/data/manoeuvres/surface_dive.toml``, one cycle) with the basic layer
    only.
 3. **Swim on** under water with the stroke and its layers.
 4. **Breathe in** (back to the start volume, as a swimmer surfacing takes a breath)
@@ -33,12 +33,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.model import SEGMENTS, Swimmer
 from flapsim.swim.strokes import load_stroke, stroke_tables
 
-DIVE_FILE = Path(__file__).resolve().parent / "manoeuvres" / "surface_dive.toml"
+DIVE_FILE = Path(__file__).resolve().parent / "data" / "manoeuvres" / "surface_dive.toml"
 #: lung air after breathing out [L]: the swimmer's mass M at 1044 kg/m^3 plus V L of
 #: air has density 1028 kg/m^3 (REFERENCE_DATA) when V = M (1/1028 - 1/1044) = 1.33 L
 EXHALED_L = 1.33
@@ -49,7 +49,7 @@ class SurfaceDive:
     """Control hook: ``swim(..., target=waypoints, control_hook=SurfaceDive(waypoints))``.
 
     ``target`` needs ``points`` (n, 3) [m] and ``radius`` [m] (a
-    :class:`flapsim.swim.targets.Waypoints`); its first point below the surface is the
+    :class:`flapsim.swim.goals.Waypoints`); its first point below the surface is the
     one dived for."""
 
     target: object

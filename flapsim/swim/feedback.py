@@ -13,7 +13,7 @@ start position, or a target):
   (-pi, pi] [rad]; positive = the swimmer should turn left. The heading is the
   horizontal direction of the trunk's forward axis (head-ward when prone, anterior
   when upright); the desired heading is the start heading (0) unless a target sets it
-  (:mod:`flapsim.swim.targets`);
+  (:mod:`flapsim.swim.goals`);
 * ``heading_rate``: the trunk's turning rate about the vertical [rad/s], + = left.
 """
 

@@ -4,7 +4,7 @@ Layer 1, the basic stroke layer (:class:`BasicStrokeLayer`): cycle through a str
 keyframed pose graph at a stroke rate and drive the PD muscles towards the
 interpolated pose.
 
-Layer 2, the per-cycle perturbation layer: :class:`flapsim.swim.cycle.CycleLayer`
+Layer 2, the per-cycle perturbation layer: :class:`flapsim.swim.per_cycle.CycleLayer`
 re-blends the stroke's six ``[cycle.*]`` sequences into the tables at the start of
 every cycle (:meth:`BasicStrokeLayer.set_tables`).
 
@@ -21,10 +21,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 from flapsim.swim.feedback import signals, weight
 from flapsim.swim.model import Swimmer
-from flapsim.swim.pd import KP, kind_of, pd_controls
+from flapsim.swim.muscles import KP, kind_of, pd_controls
 from flapsim.swim.strokes import Stroke, StrokeTables, stroke_tables
 
 
@@ -149,7 +149,7 @@ class FeedbackLayer:
                           else sw.com()[:2])
         # heading: along the trunk's long axis when prone, its front when upright
         self.forward_axis = 2 if st.posture == "prone" else 0
-        #: something with ``heading(com_xy, vel_xy, t) -> rad`` (flapsim.swim.targets),
+        #: something with ``heading(com_xy, vel_xy, t) -> rad`` (flapsim.swim.goals),
         #: or None: hold the start heading
         self.target = target
         self.desired_heading = 0.0

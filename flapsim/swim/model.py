@@ -25,13 +25,13 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from flapsim.assets import asset_path
-from flapsim.errors import InputError, ModelError
+from flapsim.core.assets import asset_path
+from flapsim.core.callbacks import DISPATCHER, Registration
+from flapsim.core.errors import InputError, ModelError
 from flapsim.fluid.buoyancy import Buoyancy, BuoyancyParams
 from flapsim.fluid.coefficients import hoerner_plate
 from flapsim.fluid.flow import FlowField
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
-from flapsim.sim.callbacks import DISPATCHER, Registration
 
 #: segment (body and box geom) names, parent first
 SEGMENTS = (
@@ -75,7 +75,7 @@ class SwimmerParams:
     cd_normal: float = 1.2
     #: "pool" (floor 3 m down, visible water) or "bare" (swimmer.xml only)
     world: str = "pool"
-    #: physics timestep [s]; 4 ms is stable with the PD gains of flapsim.swim.pd
+    #: physics timestep [s]; 4 ms is stable with the PD gains of flapsim.swim.muscles
     timestep: float = 0.004
 
     def __post_init__(self) -> None:

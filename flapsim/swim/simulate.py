@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from flapsim.errors import InputError, SimulationError
+from flapsim.core.callbacks import DISPATCHER
+from flapsim.core.errors import InputError, SimulationError
 from flapsim.fluid.flow import FlowField
-from flapsim.sim.callbacks import DISPATCHER
+from flapsim.swim.goals import Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.strokes import Stroke, load_stroke
-from flapsim.swim.targets import Heading, Path, Point, Trajectory, Waypoints
 
 log = logging.getLogger(__name__)
 
@@ -93,11 +93,11 @@ class SwimResult:
     wall_s: float = 0.0
     water_level: float = 0.0
     #: muscle power at each sample [W]: (motor torque - joint damping qdot) . qdot summed
-    #: over the joints (the damping is the PD's velocity term, see flapsim.swim.pd)
+    #: over the joints (the damping is the PD's velocity term, see flapsim.swim.muscles)
     power: np.ndarray = field(default=None, repr=False)
     #: the feedback layer's weights (see FeedbackLayer.summary); None = basic layer only
     feedback: dict | None = None
-    #: what the swimmer steered for (flapsim.swim.targets), if anything
+    #: what the swimmer steered for (flapsim.swim.goals), if anything
     target: object | None = None
     frames: list = field(default_factory=list, repr=False)
     #: the layers swum (one of LAYERS; the last one when switched while swimming)
@@ -301,17 +301,17 @@ def swim(
     also the continuous layer: the hand rules ``rules`` (default both, see
     :mod:`flapsim.swim.continuous`) and the stroke's feedback rules (its
     ``[perturb.*]`` sections: treading water's balance) at 50 Hz. ``feedback=False``
-    (older API) means "basic". ``cycle_table``: a :class:`flapsim.swim.cycle.CycleTable`
+    (older API) means "basic". ``cycle_table``: a :class:`flapsim.swim.per_cycle.CycleTable`
     instead of the stroke's own. ``hand_params``: a
     :class:`flapsim.swim.continuous.HandRuleParams` instead of the defaults.
     ``target``: a heading, a point (with a depth: 3D), waypoints, a timed trajectory or
-    a path (flapsim.swim.targets).
+    a path (flapsim.swim.goals).
     ``control_hook(swimmer, layer)`` runs at every control step (50 Hz) after the
     layers; returning False ends the swim early (the viewer uses it; ``layer.stack``
     is the :class:`LayerStack`, whose mode it may switch).
     """
     from flapsim.swim.continuous import RULES, HandRules
-    from flapsim.swim.cycle import CycleLayer, load_table
+    from flapsim.swim.per_cycle import CycleLayer, load_table
 
     if layers is None:
         layers = "all" if feedback else "basic"
@@ -363,7 +363,7 @@ def swim(
     frames: list[np.ndarray] = []
     frame_every = 0
     if video_fps > 0:
-        from flapsim.render import new_renderer
+        from flapsim.render.video import new_renderer
 
         renderer = new_renderer(m, *video_size)
         frame_every = max(1, int(round(1.0 / (video_fps * dt))))

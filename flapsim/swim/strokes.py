@@ -1,6 +1,6 @@
 """Stroke files: per-joint keyframed pose cycles (the paper's pose control graph).
 
-A stroke is a TOML file (``flapsim/swim/strokes/<name>.toml``, or any path) that keys
+A stroke is a TOML file (``flapsim/swim/data/strokes/<name>.toml``, or any path) that keys
 each joint's anatomical angles separately over one cycle (phase 0..1), as the paper
 does ("key poses are defined for each joint separately"), in degrees::
 
@@ -48,7 +48,7 @@ on its own (a rule it does not name acts all cycle)::
 desired direction from the body line towards a target's aim by this times the aim's
 bearing (at most 90 deg; default 0: forwards).
 
-At the start of every cycle :class:`flapsim.swim.cycle.CycleLayer` scales them by
+At the start of every cycle :class:`flapsim.swim.per_cycle.CycleLayer` scales them by
 weights read from the stroke's calibration table (``<name>.cycle.json``, made by
 ``flapsim swim --calibrate``).
 
@@ -70,17 +70,17 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from flapsim.errors import DataFileError, InputError
+from flapsim.core.errors import DataFileError, InputError
 from flapsim.swim.model import JointInfo
 
-STROKE_DIR = Path(__file__).resolve().parent / "strokes"
+STROKE_DIR = Path(__file__).resolve().parent / "data" / "strokes"
 STROKES = ("breaststroke", "crawl", "treading")
 #: the largest key angle a stroke file may give, deg (a windmilling arm needs one turn)
 MAX_KEY_DEG = 1080.0
 #: the continuous layer's hand rules (:mod:`flapsim.swim.continuous`)
 HAND_RULES = ("palm", "reach")
 #: the per-cycle layer's sequence names -> (rotation axis, sign of the change it makes
-#: in the angle of :func:`flapsim.swim.cycle.attitude`: yaw + = left, pitch + = up,
+#: in the angle of :func:`flapsim.swim.per_cycle.attitude`: yaw + = left, pitch + = up,
 #: roll + = left side up)
 CYCLE_SEQUENCES: dict[str, tuple[str, int]] = {
     "yaw_left": ("yaw", 1), "yaw_right": ("yaw", -1),
@@ -321,7 +321,7 @@ def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
     keys = _parse_keys(raw.get("keys", {}), mirror, path, "keys", keys)
     if not keys:
         raise DataFileError(f"{path}: no keys: a stroke needs [pose] angles or [keys.<joint>] "
-                            "key lists (see the bundled strokes in flapsim/swim/strokes/)")
+                            "key lists (see the bundled strokes in flapsim/swim/data/strokes/)")
     perturbations = {}
     for name, spec in raw.get("perturb", {}).items():
         perturbations[name] = _parse_perturbation(name, spec, mirror, path)
@@ -499,7 +499,7 @@ class StrokeTables:
 def stroke_tables(stroke: Stroke, joints: JointInfo, nsamp: int = 240,
                   weights: dict | None = None) -> StrokeTables:
     """Sample ``stroke`` (with its perturbations at ``weights``) into per-joint target
-    tables for :func:`flapsim.swim.pd.pd_controls`."""
+    tables for :func:`flapsim.swim.muscles.pd_controls`."""
     phase = np.arange(nsamp) / nsamp
     by_joint: dict[str, np.ndarray] = {}  # mujoco joint -> (nsamp, 1 or 4)
     for joint, spec in ANATOMY.items():

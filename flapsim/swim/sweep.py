@@ -11,11 +11,11 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
-from flapsim.errors import InputError
-from flapsim.validate import RANGES
+from flapsim.core.errors import InputError
+from flapsim.core.validate import RANGES
 
 #: parameter -> (SwimmerParams field or swim() argument, unit, valid range); the ranges are
-#: the ones ``flapsim swim`` accepts (flapsim.validate.RANGES)
+#: the ones ``flapsim swim`` accepts (flapsim.core.validate.RANGES)
 PARAMETERS: dict[str, tuple[str, str, tuple[float, float]]] = {
     name: (field, RANGES[name].unit, (RANGES[name].lo, RANGES[name].hi))
     for name, field in (("density", "water_density"), ("lungs", "lung_volume_l"),
@@ -35,7 +35,7 @@ COLUMNS = (
 
 def _one(job: tuple) -> dict:
     stroke, name, value, seconds, target, feedback = job
-    from flapsim.errors import FlapsimError
+    from flapsim.core.errors import FlapsimError
     from flapsim.swim.model import SwimmerParams
     from flapsim.swim.simulate import swim
 

@@ -13,7 +13,8 @@ import os
 
 import numpy as np
 
-from flapsim.bird import path, targets
+from flapsim.bird.control import targets
+from flapsim.bird.tasks import path_control as path
 
 CAP = np.radians(float(os.environ.get("AOA_CAP_DEG", "16.57")))
 _target_state = path.target_state

@@ -3,7 +3,7 @@ that compares start states by pitch and roll only (the rest of S zeroed on both 
 
     flapsim train --samples 5000 --pre-pitch-deg 10 --pre-roll-deg 70 --seed 7 --float32 \
         --out bank70.db
-    flapsim train --merge flapsim/bird/data/dove_controller.db bank70.db --out merged70.db
+    flapsim train --merge flapsim/bird/control/data/dove_controller.db bank70.db --out merged70.db
     PYTHONPATH=. python scripts/dove_verdict_spread.py user --seed 1 --set db=merged70.db \
         --set state_weight=1 --patch scripts/experiments/attitude_context.py
 
@@ -14,7 +14,7 @@ without this patch 10 (20 with ``state_weight=1``) (docs/flight_log.md, "Tried, 
 
 import numpy as np
 
-from flapsim.bird import regression
+from flapsim.bird.control import regression
 
 _init = regression.Regressor.__init__
 _query = regression.Regressor._query_point

@@ -12,7 +12,8 @@ import os
 
 import numpy as np
 
-from flapsim.bird import path, targets
+from flapsim.bird.control import targets
+from flapsim.bird.tasks import path_control as path
 
 RATE = np.radians(float(os.environ.get("BANK_RATE_DEG", "15")))
 _target_state = path.target_state

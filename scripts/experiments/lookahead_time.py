@@ -10,7 +10,7 @@ Measured on the seed-1 draw: 0.5 s 0 of 100, 0.7 s 90, 1 s (the default) 90, 1.3
 
 import os
 
-from flapsim.bird import path
+from flapsim.bird.tasks import path_control as path
 
 VALUE = float(os.environ.get("LOOKAHEAD_S", "1.0"))
 _post_init = path.PathTarget.__post_init__

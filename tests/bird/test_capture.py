@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from flapsim.bird.capture import (
+from flapsim.bird.body.model import DOF_NAMES, MIRROR_PERM
+from flapsim.bird.flight.capture import (
     DATA_FILE,
     CaptureSet,
     load_capture,
@@ -11,8 +12,7 @@ from flapsim.bird.capture import (
     write_bvh,
     write_csv,
 )
-from flapsim.bird.model import DOF_NAMES, MIRROR_PERM
-from flapsim.errors import DataFileError
+from flapsim.core.errors import DataFileError
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +111,7 @@ def test_foreign_npz_is_refused(tmp_path):
 
 def test_bundled_file_has_provenance():
     with np.load(DATA_FILE, allow_pickle=False) as z:
-        assert str(z["generator"]) == "flapsim.bird.synthetic.synthesize"
+        assert str(z["generator"]) == "flapsim.bird.flight.synthetic_capture.synthesize"
         assert int(z["seed"]) == 2013 and bool(z["synthetic"])
 
 

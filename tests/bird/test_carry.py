@@ -5,14 +5,14 @@ added to it."""
 import numpy as np
 import pytest
 
-from flapsim.bird import cycle
-from flapsim.bird.controller import DEFAULT_CARRY, WingbeatController, load_controller
-from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.model import DOF_NAMES, Dove
-from flapsim.bird.regression import Regressor
-from flapsim.bird.wingbeat import N_PARAMS, p0, with_tail_bias
-from flapsim.cli import main
-from flapsim.errors import InputError
+from flapsim.bird.body.model import DOF_NAMES, Dove
+from flapsim.bird.control.controller import DEFAULT_CARRY, WingbeatController, load_controller
+from flapsim.bird.control.regression import Regressor
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.wingbeat import N_PARAMS, p0, with_tail_bias
+from flapsim.cli.main import main
+from flapsim.core.errors import InputError
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)
 SHARED_FLIGHT = True
@@ -84,7 +84,7 @@ def test_carry_options_are_checked(flight, capsys):
 
 def test_the_coarse_prediction_flies_the_carried_reference(flight):
     # with S0 simulated on the coarse copy, the copy flies P0 + c (P_last - P0) too
-    from flapsim.bird.prediction import CoarsePredictor
+    from flapsim.bird.control.prediction import CoarsePredictor
 
     ctl = _controller(flight, 0.5)
     ctl.predictor = CoarsePredictor()

@@ -6,21 +6,21 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird import cycle
-from flapsim.bird.controller import (
+from flapsim.bird.body.model import Dove, DoveParams
+from flapsim.bird.control.controller import (
     bundled_database_path,
     fly_controlled,
     load_controller,
     start_cruise,
 )
-from flapsim.bird.database import load_database
-from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.model import Dove, DoveParams
-from flapsim.bird.prediction import COARSE_RATE_HZ, CoarsePredictor
-from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
-from flapsim.bird.wingbeat import p0, with_tail_bias
-from flapsim.errors import InputError
-from flapsim.sim.callbacks import DISPATCHER
+from flapsim.bird.control.database import load_database
+from flapsim.bird.control.prediction import COARSE_RATE_HZ, CoarsePredictor
+from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.wingbeat import p0, with_tail_bias
+from flapsim.core.callbacks import DISPATCHER
+from flapsim.core.errors import InputError
 
 P0 = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
 WIND = (0.5, -1.0, 0.2)
@@ -158,7 +158,7 @@ def test_a_modal_twin_at_the_flights_own_step_flies_as_the_flight(modal_disturbe
 def test_a_coarse_modal_twin_is_the_modal_dove_built_at_that_step(modal_disturbed):
     # independent construction, as for rigid feathers: the modal dove generated with the
     # coarse timestep (its modes' exact step built for it), same wind and plucked feathers
-    from flapsim.bird.feather_modes import ModalParams
+    from flapsim.bird.body.feather_modes import ModalParams
 
     fl, snap = modal_disturbed
     tw = fl.twin(COARSE_RATE_HZ)
@@ -214,7 +214,7 @@ def test_coarse_modal_s0_is_within_the_databases_spread():
 
 def test_cli_refuses_coarse_with_mode_joints(capsys):
     # the coupled reference mechanism compiles its modes' gains for one timestep
-    from flapsim.bird.feather_modes import ModalParams
+    from flapsim.bird.body.feather_modes import ModalParams
 
     fl = DoveFlight(Dove.load(feathers="modal", modal=ModalParams(integration="joints")))
     try:
@@ -233,7 +233,7 @@ def test_a_coarse_modal_twin_steps_its_modes_exactly_at_its_own_timestep():
     # perturbation and the free fall's a - g is zero, so both cancel): the damped
     # oscillator's exact step over the twin's dt, lambda = exp((-zeta +- i sqrt(1 - zeta^2))
     # omega dt). Built with the flight's own step it would turn 1.5x too slowly per step.
-    from flapsim.bird.feather_modes import ModalParams
+    from flapsim.bird.body.feather_modes import ModalParams
 
     mp = ModalParams()
     fl = DoveFlight(Dove.load(feathers="modal"))

@@ -4,8 +4,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird import cycle
-from flapsim.bird.controller import (
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import (
     BaseController,
     bundled_database_path,
     cruise_metrics,
@@ -13,13 +13,13 @@ from flapsim.bird.controller import (
     load_controller,
     start_cruise,
 )
-from flapsim.bird.database import load_database
-from flapsim.bird.flight import DoveFlight
-from flapsim.bird.model import Dove
-from flapsim.bird.sampling import RANGE_TOLERANCE
-from flapsim.bird.targets import CruiseTarget, target_state, trim_of_base_flight
-from flapsim.bird.wingbeat import control_table
-from flapsim.errors import DataFileError
+from flapsim.bird.control.database import load_database
+from flapsim.bird.control.targets import CruiseTarget, target_state, trim_of_base_flight
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.bird.flight.wingbeat import control_table
+from flapsim.bird.training.sampling import RANGE_TOLERANCE
+from flapsim.core.errors import DataFileError
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)
 SHARED_FLIGHT = True
@@ -183,8 +183,8 @@ def test_a_mirrored_sample_is_the_mirror_birds_flight(flight):
     # flies them: from a rolled, side-slipping, yawing state with a lopsided wingbeat, and
     # from the mirror state with the mirror wingbeat, the two ends are mirror images (the
     # model is symmetric to round-off; one wingbeat amplifies it to < 1e-9)
-    from flapsim.bird.regression import MIRROR_STATE
-    from flapsim.bird.wingbeat import mirror_params, p0
+    from flapsim.bird.control.regression import MIRROR_STATE
+    from flapsim.bird.flight.wingbeat import mirror_params, p0
 
     P = p0()
     P[0], P[3], P[27] = 1.05, 0.04, 0.02  # left shoulder bigger and shifted; tail spread
@@ -207,7 +207,7 @@ def test_foreign_and_other_model_databases_are_refused(flight, tmp_path):
     bad.write_text("not a database\n")
     with pytest.raises(DataFileError):
         load_controller(flight, bad)
-    from flapsim.bird.database import save_database
+    from flapsim.bird.control.database import save_database
 
     other = tmp_path / "other.db"
     save_database(other, {"kind": "dove-phase1", "model_hash": "0123456789ab"},

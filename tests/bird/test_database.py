@@ -6,8 +6,7 @@ import struct
 import numpy as np
 import pytest
 
-from flapsim.bird._testing import FakeConfig, FakeWorker
-from flapsim.bird.database import (
+from flapsim.bird.control.database import (
     MAGIC,
     SCHEMA_VERSION,
     DatabaseWriter,
@@ -18,7 +17,8 @@ from flapsim.bird.database import (
     read_header,
     save_database,
 )
-from flapsim.errors import DataFileError, InputError
+from flapsim.bird.training.fake_worker import FakeConfig, FakeWorker
+from flapsim.core.errors import DataFileError, InputError
 
 CS = 10
 

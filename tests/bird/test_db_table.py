@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from flapsim.bird import paths
-from flapsim.bird.controller import bundled_database_path, database_table, load_controller
-from flapsim.bird.database import load_database, save_database
-from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.model import Dove
-from flapsim.bird.tasks import Task, build_flight
-from flapsim.errors import InputError
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import bundled_database_path, database_table, load_controller
+from flapsim.bird.control.database import load_database, save_database
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.tasks import path_shapes as paths
+from flapsim.bird.tasks.flight_tasks import Task, build_flight
+from flapsim.core.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +61,7 @@ def test_tasks_fly_with_the_databases_table(revolving_db):
     (["--merge", "a.db", "b.db", "--table", "dove_revolving"], "--table is for training"),
 ])
 def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
-    from flapsim.cli import main
+    from flapsim.cli.main import main
 
     code = main(["train", *args, "--out", str(tmp_path / "out.db")])
     err = capsys.readouterr().err.strip()
@@ -70,9 +70,9 @@ def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
 
 
 def test_twist_bias_moves_only_the_shoulder_twists():
-    from flapsim.bird.model import DOF_NAMES
-    from flapsim.bird.sampling import SamplingConfig
-    from flapsim.bird.wingbeat import p0, with_tail_bias, with_twist_bias
+    from flapsim.bird.body.model import DOF_NAMES
+    from flapsim.bird.flight.wingbeat import p0, with_tail_bias, with_twist_bias
+    from flapsim.bird.training.sampling import SamplingConfig
 
     base = with_tail_bias(p0(), 17.0)
     p = with_twist_bias(base, -8.0)
@@ -92,11 +92,11 @@ def test_twist_bias_moves_only_the_shoulder_twists():
 def test_train_options_reach_the_sampling_configuration(tmp_path):
     import argparse
 
-    from flapsim.commands import train
+    from flapsim.cli.commands import train
 
     p = argparse.ArgumentParser()
     train.add_arguments(p)
-    p.add_argument("--seed", type=int, default=0)  # every command's (flapsim.cli)
+    p.add_argument("--seed", type=int, default=0)  # every command's (flapsim.cli.main)
     args = p.parse_args(["--samples", "10", "--out", str(tmp_path / "o.db"), "--table", "dove_revolving",
                          "--tail-bias-deg", "25", "--twist-bias-deg", "-8"])
     cfg, _ = train.phase1(args)

@@ -4,11 +4,11 @@ where a request lies among densely packed samples, k where they are sparse."""
 import numpy as np
 import pytest
 
-from flapsim.bird.controller import load_controller
-from flapsim.bird.flight import DoveFlight
-from flapsim.bird.model import Dove
-from flapsim.bird.regression import DENSE_QUANTILES, Regressor
-from flapsim.errors import InputError
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import load_controller
+from flapsim.bird.control.regression import DENSE_QUANTILES, Regressor
+from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.core.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +101,7 @@ def test_the_default_is_half_a_percent_for_rigid_feathers_and_off_for_modal():
 @pytest.mark.parametrize("command", [["eval", "--scenario", "figure8-level"],
                                      ["fly", "--controller", "learned"]])
 def test_the_cli_refuses_a_negative_k_dense(capsys, command):
-    from flapsim.cli import main
+    from flapsim.cli.main import main
 
     assert main([*command, "--k-dense", "-1"]) == 2
     err = capsys.readouterr().err.strip()

@@ -6,17 +6,17 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.capture import reference_capture
-from flapsim.bird.flight import (
+from flapsim.bird.body.model import Dove, DoveParams
+from flapsim.bird.flight.capture import reference_capture
+from flapsim.bird.flight.dove_flight import (
     DoveFlight,
     FlightConfig,
     flight_metrics,
     fly,
     wind_tunnel,
 )
-from flapsim.bird.model import Dove, DoveParams
-from flapsim.bird.wingbeat import mirror_params, p0, reference_wingbeat, with_tail_bias
-from flapsim.cli import main
+from flapsim.bird.flight.wingbeat import mirror_params, p0, reference_wingbeat, with_tail_bias
+from flapsim.cli.main import main
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +50,7 @@ def test_momentum_lift_equals_the_summed_feather_forces(dove):
     fl = DoveFlight(dove, use_rollout=False)
     try:
         fl.reset(cfg, p)
-        from flapsim.bird.wingbeat import control_table
+        from flapsim.bird.flight.wingbeat import control_table
 
         ctrl, _, _ = control_table(fl.ref, p, dove.model.opt.timestep, fl.kp, fl.kv)
         v0 = fl.com_velocity()
@@ -156,7 +156,7 @@ def test_fly_command_rejects_bad_input(capsys):
 def test_divergence_is_an_error_not_a_silent_reset():
     import dataclasses
 
-    from flapsim.errors import SimulationError
+    from flapsim.core.errors import SimulationError
 
     # 300 Hz is far too coarse: the stiff servos and feather springs on grams-light parts are
     # explicit in the step (measured with the torque limits in place: 400 Hz still runs two
@@ -168,7 +168,7 @@ def test_divergence_is_an_error_not_a_silent_reset():
 
 @pytest.mark.parametrize("angle_deg", [-35.0, 20.0])
 def test_roll_sign_is_right_wing_down_positive(angle_deg):
-    from flapsim.bird.flight import pitch_roll, reduced_state
+    from flapsim.bird.flight.dove_flight import pitch_roll, reduced_state
 
     r = np.radians(angle_deg)
     # right-handed rotation by r about the body's forward x axis, from level flight
@@ -189,8 +189,8 @@ def test_roll_sign_is_right_wing_down_positive(angle_deg):
 
 
 def test_base_flight_fits_the_torque_limits_and_joint_ranges(dove):
-    from flapsim.bird.model import DOF_NAMES, dof_ranges, torque_limits
-    from flapsim.bird.wingbeat import control_table
+    from flapsim.bird.body.model import DOF_NAMES, dof_ranges, torque_limits
+    from flapsim.bird.flight.wingbeat import control_table
 
     p = with_tail_bias(p0(), 17.0)
     m = dove.model
@@ -229,7 +229,7 @@ def test_base_flight_fits_the_torque_limits_and_joint_ranges(dove):
 
 @pytest.mark.parametrize("pitch_deg", [0.0, 10.0])
 def test_towed_trunk_feels_bluff_body_drag(dove, pitch_deg):
-    from flapsim.bird.flight import AIR_DENSITY, BODY_TABLE
+    from flapsim.bird.flight.dove_flight import AIR_DENSITY, BODY_TABLE
 
     v = 7.0
     fl = DoveFlight(dove, use_rollout=False)

@@ -2,7 +2,7 @@
 
 import json
 
-from flapsim.cli import main
+from flapsim.cli.main import main
 
 
 def test_learned_flight_writes_its_deviations(tmp_path, capsys):

@@ -1,11 +1,12 @@
-"""The sustained-turn and climb limits (flapsim.bird.limits): closed forms and the selection."""
+"""The sustained-turn and climb limits (flapsim.bird.flight.limits): closed forms and the selection."""
 
 import math
 
 import numpy as np
 import pytest
 
-from flapsim.bird.limits import (
+from flapsim.bird.body.model import DOF_NAMES
+from flapsim.bird.flight.limits import (
     GRAVITY,
     Candidate,
     TunnelPoint,
@@ -14,9 +15,8 @@ from flapsim.bird.limits import (
     load_factor_for_radius,
     turn_radius,
 )
-from flapsim.bird.model import DOF_NAMES
-from flapsim.bird.wingbeat import p0, with_tail_bias
-from flapsim.errors import InputError
+from flapsim.bird.flight.wingbeat import p0, with_tail_bias
+from flapsim.core.errors import InputError
 
 
 def test_turn_radius_closed_form():
@@ -93,12 +93,12 @@ def test_free_flight_range_excess_is_the_joints_own_overshoot():
     flap x1.25 beat 10 % faster twists the left elbow 7 deg past its -30 deg end)."""
     import mujoco
 
-    from flapsim.bird import cycle
-    from flapsim.bird.flight import DoveFlight, FlightConfig
-    from flapsim.bird.limits import free_flight_range_excess
-    from flapsim.bird.model import Dove
-    from flapsim.bird.sampling import RANGE_TOLERANCE
-    from flapsim.bird.wingbeat import reference_wingbeat
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.flight import cycle
+    from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+    from flapsim.bird.flight.limits import free_flight_range_excess
+    from flapsim.bird.flight.wingbeat import reference_wingbeat
+    from flapsim.bird.training.sampling import RANGE_TOLERANCE
 
     fl = DoveFlight(Dove.load(), reference_wingbeat())
     try:

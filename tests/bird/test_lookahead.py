@@ -1,4 +1,4 @@
-"""The next wingbeat's reference simulated on a second core (flapsim.bird.lookahead): the
+"""The next wingbeat's reference simulated on a second core (flapsim.bird.control.lookahead): the
 flight must be the same to the bit, a look-ahead taken only for exactly its own request, and
 the callback table never rewritten under a stepping thread."""
 
@@ -9,16 +9,16 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird import controller as C
-from flapsim.bird import cycle
-from flapsim.bird.flight import DoveFlight
-from flapsim.bird.lookahead import ReferenceLookahead
-from flapsim.bird.model import Dove
-from flapsim.bird.paths import inclined_circle
-from flapsim.bird.tasks import PushSpec, Task, fly_task
-from flapsim.errors import InputError
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control import controller as C
+from flapsim.bird.control.lookahead import ReferenceLookahead
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.bird.tasks.flight_tasks import PushSpec, Task, fly_task
+from flapsim.bird.tasks.path_shapes import inclined_circle
+from flapsim.core.callbacks import DISPATCHER
+from flapsim.core.errors import InputError
 from flapsim.fluid.flow import Gust, PythonField
-from flapsim.sim.callbacks import DISPATCHER
 
 
 def test_the_lookahead_flies_the_same_flight_to_the_bit_in_a_gust_and_a_push():

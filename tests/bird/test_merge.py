@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from flapsim.bird.database import load_database, merge_databases, save_database
-from flapsim.cli import main
-from flapsim.errors import DataFileError, InputError
+from flapsim.bird.control.database import load_database, merge_databases, save_database
+from flapsim.cli.main import main
+from flapsim.core.errors import DataFileError, InputError
 
 P0 = [0.1, 0.2, 0.3]
 
@@ -137,8 +137,8 @@ def test_pre_state_ranges_reach_the_sampler_and_its_provenance():
     per axis, angular velocity within +-W deg/s per axis."""
     import argparse
 
-    from flapsim.bird.sampling import SampleWorker
-    from flapsim.commands.train import phase1
+    from flapsim.bird.training.sampling import SampleWorker
+    from flapsim.cli.commands.train import phase1
 
     args = argparse.Namespace(seed=3, sigma=None, pre_pitch_deg=30.0, pre_roll_deg=30.0, pre_velocity=4.0,
                               pre_angvel=60.0, feathers="rigid")
@@ -185,9 +185,9 @@ def test_sampling_centre_and_pre_speed_reach_the_sampler():
     (the bundled database's has none of these keys)."""
     import argparse
 
-    from flapsim.bird.model import DOF_NAMES
-    from flapsim.bird.sampling import SampleWorker, SamplingConfig
-    from flapsim.commands.train import phase1
+    from flapsim.bird.body.model import DOF_NAMES
+    from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
+    from flapsim.cli.commands.train import phase1
 
     d0 = SamplingConfig(seed=3, pitch_deg=10.0, roll_deg=10.0).to_dict()
     assert not {"centre_flap_scale", "centre_timewarp"} & set(d0) and d0["cruise_speed"] == 7.0
@@ -226,8 +226,8 @@ def test_a_centre_wingbeat_reaches_the_sampler_and_its_provenance(tmp_path):
     stored with the configuration and read back from it."""
     import argparse
 
-    from flapsim.bird.sampling import SampleWorker, SamplingConfig
-    from flapsim.commands.train import phase1
+    from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
+    from flapsim.cli.commands.train import phase1
 
     d0 = SamplingConfig(seed=3, pitch_deg=10.0, roll_deg=10.0).to_dict()
     assert "centre_wingbeat" not in d0  # the bundled database's configuration is unchanged

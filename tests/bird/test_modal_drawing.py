@@ -9,8 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.modal_feathers import FeatherDrawing, ModalFeathers, dove_feather_modes, video_model
-from flapsim.bird.model import UNDERSIDE, Dove
+from flapsim.bird.body.feather_dynamics import FeatherDrawing, ModalFeathers, dove_feather_modes, video_model
+from flapsim.bird.body.model import UNDERSIDE, Dove
 from flapsim.fluid.coefficients import get_table
 
 FEATHER = "l_p8"
@@ -170,7 +170,7 @@ class _Handle:
     def __init__(self, model, data, frames: list):
         self.m, self.d, self.frames = model, data, frames
         self.cam = types.SimpleNamespace()
-        self.perturb = mujoco.MjvPerturb()  # the mouse's selection (flapsim.viewer reads it)
+        self.perturb = mujoco.MjvPerturb()  # the mouse's selection (flapsim.render.viewer reads it)
         self.user_scn = types.SimpleNamespace(ngeom=0, maxgeom=0, geoms=[])
 
     def lock(self):
@@ -193,8 +193,8 @@ class _Handle:
 def modal_db(tmp_path_factory, dove):
     """The bundled database's samples relabelled for the modal dove: the viewer only needs
     a controller it accepts (flight quality is not what is tested here)."""
-    from flapsim.bird.controller import bundled_database_path
-    from flapsim.bird.database import load_database, save_database
+    from flapsim.bird.control.controller import bundled_database_path
+    from flapsim.bird.control.database import load_database, save_database
 
     db = load_database(bundled_database_path())
     path = tmp_path_factory.mktemp("db") / "modal.db"
@@ -205,7 +205,7 @@ def modal_db(tmp_path_factory, dove):
 
 
 def test_the_viewer_draws_each_frame_bent(dove, modal_db):
-    from flapsim.bird.viewer import view_flight
+    from flapsim.bird.tasks.interactive import view_flight
 
     frames: list = []
     r = view_flight(0.3, modal_db, feathers="modal",

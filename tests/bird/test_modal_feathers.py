@@ -6,10 +6,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.feather_modes import ModalParams, ShaftBeam, euler_bernoulli_tip_deflection
-from flapsim.bird.flight import DoveFlight, FlightConfig, flight_metrics, fly
-from flapsim.bird.modal_feathers import ModalFeathers, clamped_feather_xml, dove_feather_modes
-from flapsim.bird.model import Dove, DoveParams, _Inertia, _inertial_xml
+from flapsim.bird.body.feather_dynamics import ModalFeathers, clamped_feather_xml, dove_feather_modes
+from flapsim.bird.body.feather_modes import ModalParams, ShaftBeam, euler_bernoulli_tip_deflection
+from flapsim.bird.body.model import Dove, DoveParams, _Inertia, _inertial_xml
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, flight_metrics, fly
 from flapsim.fluid.coefficients import get_table
 
 RIGID_HASH = "78496ea82ee6"  # the bundled controller database is bound to it
@@ -257,7 +257,7 @@ def test_warping_jacobian_and_length(params):
 def _primary_on_twist_hinge(params, k: int = 4):
     """A primary on its twist hinge (the dove's spring, damper and one-sided range), the hinge
     fixed in space, gravity off."""
-    from flapsim.bird.model import left_feathers
+    from flapsim.bird.body.model import left_feathers
 
     fe = next(f for f in left_feathers(params) if f.name == f"l_p{k + 1}")
     inert = _Inertia()
@@ -361,8 +361,8 @@ def test_modal_state_is_in_the_snapshot(modal_dove):
     state, the warm start and ``userdata``) repeats the continuation bit for bit, also
     through ``mujoco.rollout`` and after extra ``mj_forward`` calls (what the controller's
     snapshots and P0 predictions rely on); without ``userdata`` it does not."""
-    from flapsim.bird import cycle
-    from flapsim.bird.wingbeat import p0, with_tail_bias
+    from flapsim.bird.flight import cycle
+    from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 
     fl = DoveFlight(modal_dove, use_rollout=False)
     try:
@@ -412,7 +412,7 @@ def test_engine_modes_follow_the_coupled_joints_in_flight(modal_dove):
         fl = DoveFlight(dove, use_rollout=False)
         try:
             cfg = FlightConfig()
-            from flapsim.bird.wingbeat import p0, with_tail_bias
+            from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 
             p = with_tail_bias(p0(), cfg.tail_bias_deg)
             fl.reset(cfg, p)
@@ -446,8 +446,8 @@ def test_own_weight_sag_matches_the_beam(params, integration):
     """Gravity acts on the modes (the D'Alembert load of a bone accelerating at g): a clamped
     secondary, flat and horizontal, in vacuum, sags under its own weight as the full beam
     (all its elements, no modal truncation) does under the same distributed load."""
-    from flapsim.bird.feather_modes import _quadrature
-    from flapsim.bird.model import left_feathers
+    from flapsim.bird.body.feather_modes import _quadrature
+    from flapsim.bird.body.model import left_feathers
 
     mp = ModalParams(damping_ratio=1.0, integration=integration)
     fm, m, prov = _clamped(params, "l_s5", mp, density=0.0, gravity=True)
@@ -554,7 +554,7 @@ def test_aerodynamic_load_bends_the_feather_its_way(params, integration):
 def test_fly_command_takes_feathers_modal(tmp_path, modal_dove):
     import json
 
-    from flapsim.cli import main
+    from flapsim.cli.main import main
 
     out = tmp_path / "fly.json"
     assert main(["fly", "--feathers", "modal", "--wingbeats", "1", "--json", str(out)]) == 0
@@ -569,7 +569,7 @@ def test_calibration_scene_bends_at_the_downstroke_and_twists_at_the_upstroke():
     twist open at the upstroke (tens of degrees: the hinge's stop is at the twist limit) and
     stay nearly shut at the downstroke (a few degrees at most). The secondary, with no hinge,
     does not twist beyond its elastic twist (below 0.1 deg)."""
-    from flapsim.bird.calibration import record, summary
+    from flapsim.bird.flight.calibration import record, summary
 
     res = summary(record(7.0, 5.0))
     p8, s5 = res["l_p8"], res["l_s5"]

@@ -11,11 +11,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.feather_modes import ModalParams
-from flapsim.bird.flight import DoveFlight, FlightConfig
-from flapsim.bird.modal_feathers import REC, ModalFeathers, modal_engine, modal_kernel
-from flapsim.bird.model import Dove
-from flapsim.bird.wingbeat import p0, with_tail_bias
+from flapsim.bird.body.feather_dynamics import REC, ModalFeathers, modal_engine, modal_kernel
+from flapsim.bird.body.feather_modes import ModalParams
+from flapsim.bird.body.model import Dove
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 from flapsim.fluid.coefficients import get_table
 from flapsim.fluid.flow import FlowField, Uniform
 from flapsim.fluid.surfaces import plate_force
@@ -167,7 +167,7 @@ def test_kernel_equals_the_reference_on_a_bent_moving_dove(bent_state):
 
 def test_kernel_cos_sin_is_libm_to_the_last_bits():
     """The warp's cos/sin (a polynomial below 1/2 rad) against libm across both branches."""
-    from flapsim.bird.modal_feathers import _cos_sin
+    from flapsim.bird.body.feather_dynamics import _cos_sin
 
     a = np.concatenate([np.linspace(-3.0, 3.0, 2001), np.geomspace(1e-12, 0.4999999, 500),
                         -np.geomspace(1e-12, 0.4999999, 500)])

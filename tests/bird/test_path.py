@@ -7,15 +7,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.path import (
+from flapsim.bird.tasks.path_control import (
     FlightPath,
     bank_for_turn,
     hermite,
     load_path,
     quat_distance,
 )
-from flapsim.cli import main
-from flapsim.errors import DataFileError, InputError
+from flapsim.cli.main import main
+from flapsim.core.errors import DataFileError, InputError
 
 
 def _arc(R=20.0, turn=4.7, n=40):
@@ -154,7 +154,7 @@ def test_fly_path_without_wingbeats_gets_the_tasks_time_budget(tmp_path, monkeyp
     """``fly --path`` without ``--wingbeats`` hands the task no wingbeat count, so it is
     flown for eval's time budget in seconds (the old count of 0.1075 s reference wingbeats
     gave shorter learned wingbeats less time); ``--wingbeats N`` still caps it at N."""
-    import flapsim.bird.tasks as tasks
+    import flapsim.bird.tasks.flight_tasks as tasks
 
     seen = []
 
@@ -179,7 +179,7 @@ def test_the_dove_follows_a_figure_of_eight_with_ascending_and_descending_turns(
     # two 35 m lobes (427 m): left and right turns, the bank reversals between them, a 2 m
     # rise on one lobe and the descent on the other (the paper's Table I path); the same
     # distance flown straight along the start heading leaves it by up to 363 m
-    from flapsim.bird.paths import figure8
+    from flapsim.bird.tasks.path_shapes import figure8
 
     f = tmp_path / "eight.json"
     f.write_text(json.dumps(figure8(lobe_m=35.0, rise_m=2.0).points.tolist()))
@@ -201,9 +201,9 @@ def test_recovery_curve_on_the_path_is_the_path_itself():
     # a bird on a straight path flying along it at the asked speed: the Hermite curve from its
     # position and velocity to the look-ahead point and tangent is the straight line, so the
     # position asked at the end of a wingbeat of dt is p + v dt and the heading is the path's
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
 
     h = np.radians(30.0)
     u = np.array([np.cos(h), np.sin(h), 0.0])
@@ -234,9 +234,9 @@ def test_the_desired_position_is_the_curve_at_the_wingbeats_actual_end():
     # (its own timewarp): on a straight path flown at 7 m/s the curve is the line, so the
     # desired position must be p + v 0.1, not p + v 0.1075 (5 cm further); tolerance as in
     # the test above (5 cm closest-point samples weighted < 0.032 by the Hermite basis)
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
 
     path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
     trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
@@ -258,9 +258,9 @@ def test_near_the_paths_end_the_look_ahead_continues_straight_on():
     # point (7 m on) lies beyond the end, on the line's continuation, so the recovery curve is
     # still the line and the desired position after 0.1 s is p + 0.7 m (clamped to the end
     # point, the curve would have to cover 2 m in the second it is given: 0.36 m in 0.1 s)
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
 
     path = FlightPath(np.array([[0, 0, 10.0], [20.0, 0, 10.0]]))
     p, t = path.ahead(25.0)
@@ -278,9 +278,9 @@ def test_near_the_paths_end_the_look_ahead_continues_straight_on():
 def test_in_a_crosswind_the_bird_crabs_so_that_its_ground_track_is_the_path():
     # a 2 m/s wind from the right (+y) across a path along +x, airspeed 7 m/s: the air
     # velocity that makes good +x is (sqrt(49 - 4), -2, 0), a heading of -asin(2/7) = -16.6 deg
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget, _attitude_quat
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget, _attitude_quat
 
     path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
     trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
@@ -303,9 +303,9 @@ def test_short_of_airspeed_the_climb_asked_gives_way(k):
     7 m/s is asked (speed integral off) is asked the climb whose vertical speed is the path's,
     7 sin 7 deg, less k x (7 - 5) x 7: for k = 0.1 asin((0.853 - 1.4) / 7) = -4.5 deg, a
     gentle descent to win back speed; k = 0 (and any bird at the speed asked) gets 7 deg."""
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
 
     a = np.radians(7.0)
     u = np.array([np.cos(a), 0.0, np.sin(a)])
@@ -331,9 +331,9 @@ def test_the_bird_crabs_into_the_winds_lagged_average_and_is_carried_by_the_rest
     +x. The crab (heading -asin(w / 7)) uses the wind averaged with time constant ``memory``:
     after one 0.1 s wingbeat 3 (1 - exp(-0.1 / memory)) = 0.285 m/s for 1 s, all 3 m/s for 0;
     the ground velocity asked is that air velocity plus the wind of the moment."""
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget, _attitude_quat
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget, _attitude_quat
 
     path = FlightPath(np.array([[0, 0, 10.0], [100.0, 0, 10.0]]))
     trim = Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0]))
@@ -364,9 +364,9 @@ def test_the_bank_asked_is_the_recovery_curves_bank_lead_seconds_on(lead):
     # acceleration across the velocity. Asked at u = dt + lead; the curve itself (the
     # evaluation's desired attitude) at u = dt. Tolerance: the closest path point is found on
     # 5 cm samples, which moves the look-ahead point along x by < 2.5 cm: < 1e-4 rad here
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import GRAVITY, Trim
+    from flapsim.bird.control.targets import GRAVITY, Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
 
     def bank(u, y0=1.0):
         ay, vy = (12 * u - 6) * y0, (6 * u * u - 6 * u) * y0
@@ -401,9 +401,9 @@ def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys):
     # (lead 0, dt = 0.1 s, u = 0.1) is atan(a_lat / g) with a = (12u - 6) 3 = -14.4 m/s^2 across
     # and v = (7, (6u^2 - 6u) 3) = (7, -1.62): a_lat = 14.4 * 7 / 7.185 = 14.03 m/s^2, a bank
     # of 55.0 deg toward the path; asked, it is cut at the cap (tolerance: as above)
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
 
     path = FlightPath(np.array([[0, 0, 10.0], [200.0, 0, 10.0]]))
     tgt = PathTarget(Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0])), path, speed=7.0,
@@ -423,8 +423,8 @@ def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys):
 
 
 def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import Trim
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.tasks.path_control import PathTarget
 
     path = FlightPath(np.array([[0, 0, 10.0], [20.0, 0, 10.0]]))
     for bad in (-0.1, 1.5, float("nan")):
@@ -449,9 +449,9 @@ def test_ahead_of_a_tight_turn_the_speed_asked_is_where_it_needs_the_load_factor
     5.42 m/s); the floor and the speed asked bound it, a straight far from the turn keeps the
     speed asked, and 0 turns the slowing off. Tolerance 1 %: away from its ends the spline
     through 48 points a turn has the circle's curvature within 0.3 %."""
-    from flapsim.bird.cycle import CycleEnd
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import GRAVITY, Trim
+    from flapsim.bird.control.targets import GRAVITY, Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
 
     a = np.linspace(0.0, 2.5 * np.pi, 61)
     lead_in = np.stack([np.linspace(-40.0, 0.0, 9)[:-1], np.zeros(8), np.full(8, 10.0)], 1)
@@ -492,8 +492,8 @@ def test_the_time_allowed_follows_the_speeds_asked():
     sqrt(g r sqrt(n^2 - 1)) (5.42 m/s for 4 m at 1.25 g). Tolerance 3 %: the speed asked
     starts to drop two look-ahead distances (14 m) before the turn, and the spline's ends
     bend tighter than its points."""
-    from flapsim.bird.path import PathTarget
-    from flapsim.bird.targets import GRAVITY, Trim
+    from flapsim.bird.control.targets import GRAVITY, Trim
+    from flapsim.bird.tasks.path_control import PathTarget
 
     a = np.linspace(0.0, 2.5 * np.pi, 61)
     lead_in = np.stack([np.linspace(-40.0, 0.0, 9)[:-1], np.zeros(8), np.full(8, 10.0)], 1)
@@ -529,7 +529,7 @@ def test_curvature_and_climb_of_a_helix_are_its_closed_form():
     # a helix of radius R rising c per radian: curvature R / (R^2 + c^2), climb atan(c / R).
     # 48 points a turn: away from the ends the interpolating spline is within 0.5 % of it
     # (its error falls as h^2); the natural ends (zero second derivative) bend it off
-    from flapsim.bird.path import FlightPath
+    from flapsim.bird.tasks.path_control import FlightPath
 
     R, c = 4.0, 0.5
     t = np.linspace(0.0, 4 * np.pi, 97)
@@ -547,8 +547,7 @@ def test_the_tightest_radius_is_the_brute_force_one_ends_included():
     # smallest over the whole path (within 1 %: the 1 cm chord against radii of metres).
     # The paper's 3.6 m circle as a natural spline bends tighter near its ends (2.8-2.9 m
     # within its first metre): what the report must show, since the bird is asked to fly it
-    from flapsim.bird import paths
-
+    from flapsim.bird.tasks import path_shapes as paths
     path = paths.inclined_circle(3.6, 0.0)
     s = np.arange(0.0, path.length, 0.01)
     a, b, c = path.point(s[:-2]), path.point(s[1:-1]), path.point(s[2:])
@@ -572,8 +571,8 @@ def test_the_tightest_radius_is_the_brute_force_one_ends_included():
 
 
 def test_geometry_of_a_straight_climb_and_the_inclined_circles():
-    from flapsim.bird import paths
-    from flapsim.bird.path import FlightPath
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.path_control import FlightPath
 
     a = np.radians(12.0)
     s = np.linspace(0.0, 30.0, 4)
@@ -594,8 +593,8 @@ def test_a_task_allows_its_path_at_3_m_s_whatever_the_wingbeats_length():
     needed) is flown for the time allowed, the longer of 1.5 x 20 m / 7 m/s and 20 m / 3 m/s
     (MIN_WAY_SPEED), plus 5 reference wingbeats: 7.20 s, and stops within one wingbeat of it
     (a learned wingbeat lasts 0.09-0.115 s) short of the end."""
-    from flapsim.bird.paths import straight
-    from flapsim.bird.tasks import MIN_WAY_SPEED, REFERENCE_PERIOD_S, Task, fly_task
+    from flapsim.bird.tasks.flight_tasks import MIN_WAY_SPEED, REFERENCE_PERIOD_S, Task, fly_task
+    from flapsim.bird.tasks.path_shapes import straight
 
     assert MIN_WAY_SPEED == 3.0
     r = fly_task(Task(straight(20.0), wind=(-5.0, 0.0, 0.0)))
@@ -615,8 +614,8 @@ def test_the_dove_holds_its_airspeed_in_a_crosswind_and_rides_out_a_side_gust():
     completes the path within 2 m (crabbing into each wingbeat's wind it rolled to 60 deg
     and left the 3 m tube 1.5 s after the gust). The straight flights end up to 1.3 m from
     the path in still air too, hence no tighter bound there."""
-    from flapsim.bird.paths import straight
-    from flapsim.bird.tasks import Task, fly_task
+    from flapsim.bird.tasks.flight_tasks import Task, fly_task
+    from flapsim.bird.tasks.path_shapes import straight
     from flapsim.fluid.flow import Gust
 
     r = fly_task(Task(straight(20.0), wind=(0.0, 2.0, 0.0)))
@@ -638,9 +637,9 @@ def test_speed_first_finishes_a_7_deg_climb_sooner_and_both_make_way():
     4.43-4.69 m/s of way. Their verdict is a coin toss at the tube's edge (3.0-3.2 m off on
     three of the four there; within it on an AMD EPYC, sessions 16-22), so it is not asserted:
     the way made is."""
-    from flapsim.bird.path import FlightPath
-    from flapsim.bird.paths import START_HEIGHT
-    from flapsim.bird.tasks import MIN_WAY_SPEED, Task, fly_task
+    from flapsim.bird.tasks.flight_tasks import MIN_WAY_SPEED, Task, fly_task
+    from flapsim.bird.tasks.path_control import FlightPath
+    from flapsim.bird.tasks.path_shapes import START_HEIGHT
 
     a = np.radians(7.0)
     path = FlightPath(np.array([[0.0, 0.0, START_HEIGHT],
@@ -660,7 +659,7 @@ def test_the_held_out_user_paths_are_the_helices_and_turns_they_are_named_for():
     # turn, as above). Sides: a left turn from heading +x goes to +y. Every path is inside the
     # envelope the issue promises (turn radius >= 3 m, climb <= 30 deg) where it is not bent
     # by the spline's ends, and none is a scenario's shape.
-    from flapsim.bird.paths import USER_PATHS
+    from flapsim.bird.tasks.path_shapes import USER_PATHS
 
     helices = {"circle-3-left": (3, 0, 1), "circle-3-right": (3, 0, -1), "circle-4-left": (4, 0, 1),
                "circle-4-right": (4, 0, -1), "helix-3-up-3-right": (3, 3, -1),
@@ -686,8 +685,8 @@ def test_the_held_out_user_paths_are_the_helices_and_turns_they_are_named_for():
 def test_a_start_speed_change_changes_the_starts_speed_and_nothing_else(monkeypatch):
     # verdict-spread studies perturb the start along its velocity: the speed by exactly dv
     # (to rounding), the direction and the position not at all
-    from flapsim.bird import tasks
-    from flapsim.bird.paths import helix
+    from flapsim.bird.tasks import flight_tasks as tasks
+    from flapsim.bird.tasks.path_shapes import helix
 
     seen = []
 

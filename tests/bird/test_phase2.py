@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from flapsim.bird.database import load_database
-from flapsim.bird.discovery import Manifold
-from flapsim.bird.sampling import WingbeatSet
-from flapsim.cli import main
+from flapsim.bird.control.database import load_database
+from flapsim.bird.training.discovery import Manifold
+from flapsim.bird.training.sampling import WingbeatSet
+from flapsim.cli.main import main
 
 
 def test_manifold_fits_a_quadratic_and_continues_along_its_tangent():
@@ -59,8 +59,8 @@ def test_phase2_from_a_phase1_database(tmp_path, capsys):
 def test_real_sampler_same_database_for_any_workers_and_backend(tmp_path):
     # the determinism the fake-worker tests check, with the dove itself: sample i depends
     # only on (seed, i), whichever process simulates it (and whatever it simulated before)
-    from flapsim.bird.sampling import SampleWorker, SamplingConfig
-    from flapsim.bird.training import train
+    from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
+    from flapsim.bird.training.train import train
 
     cfg = SamplingConfig(seed=21, pitch_deg=10.0, roll_deg=10.0)
     a, b = tmp_path / "one.db", tmp_path / "two.db"

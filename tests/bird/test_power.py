@@ -1,11 +1,11 @@
-"""The dove's energy balance in free flight (flapsim.bird.power): every watt the servos put in
+"""The dove's energy balance in free flight (flapsim.bird.flight.power): every watt the servos put in
 is accounted for by the air's drag, the dampers and the bird's mechanical energy."""
 
 import numpy as np
 import pytest
 
-from flapsim.bird.power import power_budget
-from flapsim.errors import InputError
+from flapsim.bird.flight.power import power_budget
+from flapsim.core.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +64,7 @@ def test_bad_input_is_one_line():
 def test_fly_power_reports_the_budget(tmp_path, capsys):
     import json
 
-    from flapsim.cli import main
+    from flapsim.cli.main import main
 
     js = tmp_path / "f.json"
     assert main(["fly", "--wingbeats", "2", "--power", "--json", str(js)]) == 0
@@ -89,10 +89,10 @@ def test_the_quick_balance_matches_the_budget():
     # against the whole bird's, the wings' kinetic energy repeating from wingbeat to wingbeat
     # so that over four wingbeats it differs by a few hundredths of a watt: 0.05 W, where
     # half the trunk's kinetic energy change (a dropped 1/2) is ~1 W
-    from flapsim.bird.flight import DoveFlight
-    from flapsim.bird.model import Dove
-    from flapsim.bird.power import wingbeat_balance
-    from flapsim.bird.wingbeat import p0, with_tail_bias
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.flight.dove_flight import DoveFlight
+    from flapsim.bird.flight.power import wingbeat_balance
+    from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 
     fl = DoveFlight(Dove.load(), use_rollout=False)
     try:
@@ -111,10 +111,10 @@ def test_the_quick_balance_turns_mirror_wingbeats_the_mirror_way():
     # the symmetric dove from a level start does not turn, and a wingbeat and its mirror image
     # turn by equal and opposite angles (the model is mirror-exact: docs/flight.md's mirror starts);
     # 1e-6 deg is float noise over three wingbeats, against the several degrees turned
-    from flapsim.bird.flight import DoveFlight
-    from flapsim.bird.model import DOF_NAMES, Dove
-    from flapsim.bird.power import wingbeat_balance
-    from flapsim.bird.wingbeat import mirror_params, p0, with_tail_bias
+    from flapsim.bird.body.model import DOF_NAMES, Dove
+    from flapsim.bird.flight.dove_flight import DoveFlight
+    from flapsim.bird.flight.power import wingbeat_balance
+    from flapsim.bird.flight.wingbeat import mirror_params, p0, with_tail_bias
 
     p = with_tail_bias(p0(), 17.0)
     lopsided = p.copy()

@@ -3,20 +3,20 @@
 import numpy as np
 import pytest
 
-from flapsim.bird import cycle
-from flapsim.bird.controller import (
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import (
     attach_predictor,
     bundled_database_path,
     fly_controlled,
     load_controller,
     start_cruise,
 )
-from flapsim.bird.database import load_database
-from flapsim.bird.flight import DoveFlight
-from flapsim.bird.model import Dove
-from flapsim.bird.prediction import S0Predictor
-from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
-from flapsim.errors import InputError
+from flapsim.bird.control.database import load_database
+from flapsim.bird.control.prediction import S0Predictor
+from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.core.errors import InputError
 
 SHARED_FLIGHT = True
 EVERY = 4
@@ -148,7 +148,7 @@ def test_default_is_simulate_and_bad_settings_are_one_line_errors(flight):
 
 
 def test_a_database_without_s0_is_refused_for_regression(flight, tmp_path):
-    from flapsim.bird.database import save_database
+    from flapsim.bird.control.database import save_database
 
     src = load_database(bundled_database_path())
     arrays = {k: v[:200] for k, v in src.arrays.items() if k not in ("S", "S0")}

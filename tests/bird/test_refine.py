@@ -5,8 +5,8 @@ and the candidate that ends nearest the target (pitch, roll, velocity) is flown.
 import numpy as np
 import pytest
 
-from flapsim.bird import cycle
-from flapsim.bird.controller import (
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import (
     DEFAULT_REFINE,
     DEFAULT_REFINE_GOAL,
     MAX_REFINE,
@@ -17,13 +17,13 @@ from flapsim.bird.controller import (
     refine_error,
     start_cruise,
 )
-from flapsim.bird.flight import DoveFlight
-from flapsim.bird.model import Dove
-from flapsim.bird.paths import inclined_circle
-from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
-from flapsim.bird.tasks import Task, fly_task
-from flapsim.cli import main
-from flapsim.errors import InputError
+from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.bird.tasks.flight_tasks import Task, fly_task
+from flapsim.bird.tasks.path_shapes import inclined_circle
+from flapsim.cli.main import main
+from flapsim.core.errors import InputError
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)
 SHARED_FLIGHT = True
@@ -74,7 +74,7 @@ class _Banked:
         self.trim, self.speed_surplus = trim, speed_surplus
 
     def __call__(self, e0):
-        from flapsim.bird.targets import target_state
+        from flapsim.bird.control.targets import target_state
 
         return target_state(self.trim, 7.0 + self.speed_surplus, 0.0, 0.0,
                             9.81 * np.tan(np.radians(25)) / 7.0, e0.S, settle_s=0.0)
@@ -112,8 +112,8 @@ def test_the_candidate_nearest_the_target_is_flown_and_its_simulation_is_the_fli
     if aim == "reachable":
         # the bundled samples and their mirror images (roll, sideways velocity, roll and yaw
         # rates negated), as the regression searches them
-        from flapsim.bird.controller import bundled_database_path
-        from flapsim.bird.database import load_database
+        from flapsim.bird.control.controller import bundled_database_path
+        from flapsim.bird.control.database import load_database
 
         raw = load_database(bundled_database_path()).arrays["dS"]
         dS = np.vstack([raw, raw * np.array([1, -1, 1, -1, 1, -1, 1, -1])])
@@ -195,7 +195,7 @@ def test_refine_options_are_checked(flight, capsys):
 def test_cruise_with_corrections_holds_level_from_a_roll_error(flight, trim):
     # the training issue's cruise acceptance (0.5 m, 0.5 m/s, 5 deg from a 2 deg roll error),
     # over 40 wingbeats, with one correction per wingbeat
-    from flapsim.bird.controller import cruise_metrics, fly_controlled
+    from flapsim.bird.control.controller import cruise_metrics, fly_controlled
 
     ctl = load_controller(flight, refine=1)
     start_cruise(flight, ctl.P0, roll_deg=2.0)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from flapsim.bird.regression import PAPER_WEIGHTS, Regressor, default_k, idw_average, weight_vector
-from flapsim.errors import InputError
+from flapsim.bird.control.regression import PAPER_WEIGHTS, Regressor, default_k, idw_average, weight_vector
+from flapsim.core.errors import InputError
 
 
 def brute_force_knn(dS, dP, x, k, w):
@@ -103,8 +103,8 @@ def test_bad_inputs_are_one_line_errors():
 
 
 def test_mirror_samples_swap_sides_and_make_the_regression_mirror_symmetric():
-    from flapsim.bird.regression import MIRROR_STATE, mirror_samples
-    from flapsim.bird.wingbeat import N_PARAMS, mirror_params, p0
+    from flapsim.bird.control.regression import MIRROR_STATE, mirror_samples
+    from flapsim.bird.flight.wingbeat import N_PARAMS, mirror_params, p0
 
     # one hand-made sample: left shoulder elevation scaled 1.1 (s index 0), right elbow
     # shifted 0.05 rad (DOF 6 + 3 -> t index 2 * 9 + 1), rolled 0.1 rad right wing down,

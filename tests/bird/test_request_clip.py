@@ -6,8 +6,8 @@ closed form."""
 import numpy as np
 import pytest
 
-from flapsim.bird.regression import DEFAULT_CLIP_REQUEST, Regressor
-from flapsim.errors import InputError
+from flapsim.bird.control.regression import DEFAULT_CLIP_REQUEST, Regressor
+from flapsim.core.errors import InputError
 
 N = 4000
 DS = np.random.default_rng(7).uniform(-1.0, 1.0, (N, 8))
@@ -72,10 +72,11 @@ def test_bad_options_are_one_line_errors():
 def test_eval_and_fly_options_reach_the_controller(monkeypatch):
     """--clip-request / --state-weight: the controller a scenario flies has them, and a
     conditioned regression is given the state the wingbeat starts from."""
-    import flapsim.bird.tasks as tasks
-    from flapsim.bird import cycle, paths
-    from flapsim.bird.controller import start_cruise
-    from flapsim.bird.targets import CruiseTarget, trim_of_base_flight
+    import flapsim.bird.tasks.flight_tasks as tasks
+    from flapsim.bird.control.controller import start_cruise
+    from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
+    from flapsim.bird.flight import cycle
+    from flapsim.bird.tasks import path_shapes as paths
     from flapsim.scenarios import EvalOptions
     from flapsim.scenarios.flight import _fly_task
 
@@ -97,9 +98,9 @@ def test_eval_and_fly_options_reach_the_controller(monkeypatch):
     assert reg.clip_request == 0.02 and reg.context_weight == 0.5 and reg.conditioned
     assert reg.n == len(reg.context) and reg.dS_lo is not None
     # one controlled wingbeat: the regression sees the start state, not P0's end
-    from flapsim.bird.controller import load_controller
-    from flapsim.bird.flight import DoveFlight
-    from flapsim.bird.model import Dove
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.control.controller import load_controller
+    from flapsim.bird.flight.dove_flight import DoveFlight
 
     fl = DoveFlight(Dove.load())
     try:
@@ -132,7 +133,7 @@ def test_eval_and_fly_options_reach_the_controller(monkeypatch):
     ("fly", ["--controller", "learned", "--clip-request", "-0.1"], "--clip-request must be"),
 ])
 def test_cli_regression_options_bad_values(capsys, cmd, args, fragment):
-    from flapsim.cli import main
+    from flapsim.cli.main import main
 
     code = main([cmd, *args])
     err = capsys.readouterr().err.strip()
@@ -142,8 +143,8 @@ def test_cli_regression_options_bad_values(capsys, cmd, args, fragment):
 def test_cli_defaults_are_the_library_default():
     import argparse
 
-    from flapsim.commands import eval as eval_cmd
-    from flapsim.commands import fly as fly_cmd
+    from flapsim.cli.commands import eval as eval_cmd
+    from flapsim.cli.commands import fly as fly_cmd
     from flapsim.scenarios import EvalOptions
 
     for mod in (eval_cmd, fly_cmd):

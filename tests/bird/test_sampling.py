@@ -4,9 +4,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird import cycle
-from flapsim.bird.flight import pitch_roll
-from flapsim.bird.sampling import (
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import pitch_roll
+from flapsim.bird.flight.wingbeat import N_PARAMS, join, p0, reference_wingbeat, split
+from flapsim.bird.training.sampling import (
     Ellipses,
     SampleWorker,
     SamplingConfig,
@@ -16,7 +17,6 @@ from flapsim.bird.sampling import (
     project_to_ranges,
     trajectory_bounds,
 )
-from flapsim.bird.wingbeat import N_PARAMS, join, p0, reference_wingbeat, split
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)
 SHARED_FLIGHT = True
@@ -167,7 +167,7 @@ def test_snapshots_carry_the_solver_warm_start(worker):
     # a wingbeat that presses the elbows into their joint limit keeps a limit constraint
     # active across the wingbeat boundary: the constraint solver then starts from
     # qacc_warmstart, so a snapshot without it would not repeat bit for bit
-    from flapsim.bird.model import DOF_NAMES
+    from flapsim.bird.body.model import DOF_NAMES
 
     fl = worker.flight
     press = worker.P0.copy()
@@ -198,9 +198,9 @@ def test_wingbeats_leaving_a_joint_range_are_never_drawn():
 
 
 def test_a_flight_without_its_feather_forces_refuses_to_fly():
-    from flapsim.bird.flight import DoveFlight
-    from flapsim.bird.model import Dove
-    from flapsim.errors import SimulationError
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.flight.dove_flight import DoveFlight
+    from flapsim.core.errors import SimulationError
 
     fl = DoveFlight(Dove.load())
     fl.reset()

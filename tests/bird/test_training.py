@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flapsim.bird._testing import FakeConfig, FakeWorker, expected_samples
-from flapsim.bird.database import DatabaseWriter, fields_spec, load_database
-from flapsim.bird.training import run_header, train
-from flapsim.cli import main
-from flapsim.errors import DataFileError, InputError
+from flapsim.bird.control.database import DatabaseWriter, fields_spec, load_database
+from flapsim.bird.training.fake_worker import FakeConfig, FakeWorker, expected_samples
+from flapsim.bird.training.train import run_header, train
+from flapsim.cli.main import main
+from flapsim.core.errors import DataFileError, InputError
 
 CFG = FakeConfig(seed=2, sleep_s=0.002)
 N = 120
@@ -139,8 +139,8 @@ class _OtherModel(FakeWorker):
 
 _SCRIPT = """
 import sys
-from flapsim.bird.training import train
-from flapsim.bird._testing import FakeConfig, FakeWorker
+from flapsim.bird.training.train import train
+from flapsim.bird.training.fake_worker import FakeConfig, FakeWorker
 train(FakeConfig(seed=2, sleep_s=0.01), sys.argv[1], {n}, FakeWorker, workers=2,
       chunk_size={cs}, progress=False)
 """
@@ -268,7 +268,7 @@ def test_cli_phase2_refuses_a_bad_phase1_file(capsys, tmp_path):
 
 
 def test_cli_trains_and_writes_json(capsys, tmp_path, monkeypatch, reference):
-    import flapsim.commands.train as cmd
+    import flapsim.cli.commands.train as cmd
 
     monkeypatch.setattr(cmd, "phase1", lambda args: (FakeConfig(seed=args.seed, sleep_s=0.002),
                                                       FakeWorker))

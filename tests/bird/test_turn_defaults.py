@@ -4,16 +4,16 @@ more angle of attack it asks per g of a turn's load factor."""
 import numpy as np
 import pytest
 
-from flapsim.bird import tasks
-from flapsim.bird.path import FlightPath
-from flapsim.bird.paths import s_curve
-from flapsim.bird.tasks import (
+from flapsim.bird.tasks import flight_tasks as tasks
+from flapsim.bird.tasks.flight_tasks import (
     DEFAULT_AOA_PER_G_DEG,
     DEFAULT_BANK_LEAD_S,
     Task,
     build_flight,
     fly_task,
 )
+from flapsim.bird.tasks.path_control import FlightPath
+from flapsim.bird.tasks.path_shapes import s_curve
 
 
 def _median_largest(path: FlightPath, tasks_asked: list[dict]) -> list[float]:

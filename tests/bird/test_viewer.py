@@ -29,7 +29,7 @@ def test_view_without_a_display_is_a_one_line_error(monkeypatch, capsys):
 def test_view_with_modal_feathers_needs_a_modal_database(monkeypatch, capsys):
     # the rigid dove's bundled database is refused by the modal dove (a database is bound to
     # its model's hash), before any window opens
-    from flapsim.bird.controller import bundled_database_path
+    from flapsim.bird.control.controller import bundled_database_path
 
     monkeypatch.setenv("DISPLAY", ":0")
     monkeypatch.setenv("MUJOCO_GL", "glfw")
@@ -50,7 +50,7 @@ def _bird_pixels(rgb: np.ndarray) -> np.ndarray:
 def _open_dove_viewer(xvfb_display, out: Path):
     """``flapsim view`` for 4 s on the virtual display: (the process, its window, its env)."""
     env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
-    app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli", "view", "--seconds", "4",
+    app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli.main", "view", "--seconds", "4",
                               "--json", str(out)], env)
     return app, xvfb_display.window(app, env), env
 
@@ -116,7 +116,7 @@ def test_the_dove_turns_the_way_the_keys_ask_and_stays_in_view(tmp_path, xvfb_di
 def test_a_double_click_on_the_ground_turns_the_dove_toward_it(tmp_path, xvfb_display):
     pytest.importorskip("PIL.ImageGrab")
     # the tracking camera looks at the dove from 1.4 m, 15 deg above, from azimuth 30 deg
-    # (flapsim.bird.viewer): the window's centre ray meets the ground, 10 m below, about
+    # (flapsim.bird.tasks.interactive): the window's centre ray meets the ground, 10 m below, about
     # 10 / tan 15 deg = 37 m on along that bearing, so a double-click there asks a heading
     # ~30 deg left of the flight's (+x). Straight flight holds its heading within ~2 deg, so
     # a left turn of over 10 deg by the end is the click's doing.

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from flapsim.bird.capture import reference_capture
-from flapsim.bird.model import MIRROR_PERM
-from flapsim.bird.wingbeat import (
+from flapsim.bird.body.model import MIRROR_PERM
+from flapsim.bird.flight.capture import reference_capture
+from flapsim.bird.flight.wingbeat import (
     N_PARAMS,
     ReferenceWingbeat,
     join,
@@ -15,7 +15,7 @@ from flapsim.bird.wingbeat import (
     split,
     with_tail_bias,
 )
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 
 
 @pytest.fixture(scope="module")

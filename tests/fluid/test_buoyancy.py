@@ -9,7 +9,9 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.callbacks import DISPATCHER
+from flapsim.core.errors import InputError, ModelError
+from flapsim.core.loading import load_model
 from flapsim.fluid.buoyancy import (
     Buoyancy,
     BuoyancyParams,
@@ -17,8 +19,6 @@ from flapsim.fluid.buoyancy import (
     geom_volume,
     submerged,
 )
-from flapsim.sim.callbacks import DISPATCHER
-from flapsim.sim.loading import load_model
 
 
 def _slice_reference(center, R, semi, level):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 from flapsim.fluid.flow import Breeze, FlowField, Gust, PythonField, Source, Uniform, Vortex
 
 

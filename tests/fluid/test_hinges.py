@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError
 from flapsim.fluid.hinges import PolygonHinges
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
 

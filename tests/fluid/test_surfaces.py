@@ -4,11 +4,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
+from flapsim.core.loading import load_model
 from flapsim.fluid.coefficients import flat_plate, get_table
 from flapsim.fluid.flow import FlowField, PythonField, Uniform
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
-from flapsim.sim.loading import load_model
 
 RHO = 1.225
 SQUARE = np.array([[[-0.1, -0.1, 0], [0.1, -0.1, 0], [0.1, 0.1, 0], [-0.1, 0.1, 0]]])  # 0.04 m^2

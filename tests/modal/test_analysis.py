@@ -8,7 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError
+from flapsim.core.loading import load_model
 from flapsim.modal import (
     analyze,
     fix_body_orientation,
@@ -20,7 +21,6 @@ from flapsim.modal import (
     pin_site,
     tangent_difference,
 )
-from flapsim.sim.loading import load_model
 
 # Two rigid links on parallel hinges, exact inertials so the closed form is exact.
 M1, C1, IY1, L1 = 1.5, 0.3, 0.02, 0.5

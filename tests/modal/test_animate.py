@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from flapsim.cli import main
+from flapsim.cli.main import main
 from flapsim.modal.animate import (
     Component,
     SoftLimits,

@@ -58,7 +58,7 @@ def test_sliders_update_the_pose_at_once(walk):
 
 
 def test_cli_sheet(tmp_path):
-    from flapsim.cli import main
+    from flapsim.cli.main import main
 
     path = tmp_path / "trot.png"
     assert main(["animate", "--gait", "trot", "--seconds", "0.1", "--sheet", str(path)]) == 0

@@ -6,11 +6,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import DataFileError, ModelError
+from flapsim.core.errors import DataFileError, ModelError
+from flapsim.core.loading import load_model
 from flapsim.modal.animate import animate
 from flapsim.modal.bvh import bvh_to_qpos, read_bvh, write_bvh
 from flapsim.modal.gaits import GAITS, plan_gait, resolve_model
-from flapsim.sim.loading import load_model
 
 
 @pytest.mark.parametrize("gait", ["trot", "jump"])

@@ -8,9 +8,9 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 
-from flapsim.cli import main
+from flapsim.cli.main import main
+from flapsim.core.loading import load_model
 from flapsim.modal import analyze
-from flapsim.sim.loading import load_model
 
 OBJ = """v 0 0 0
 v 0.1 0 0

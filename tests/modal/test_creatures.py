@@ -8,11 +8,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError
+from flapsim.core.loading import load_model
 from flapsim.modal import analyze
 from flapsim.modal.creatures import body_length, load_creature, run_creature, with_gait
 from flapsim.modal.dynamic import ModalController, ModeDrive, two_mode_drives
-from flapsim.sim.loading import load_model
 
 
 def test_controller_torque_is_pd_towards_moving_equilibrium():

@@ -135,7 +135,7 @@ def test_projection_closes_the_loop_at_finite_amplitude():
 def test_missing_labels_are_one_line_errors(tmp_path):
     # A creature without labelled feet/knees cannot be scored; the CLI says which
     # labels to add and exits with status 2 (user error), writing nothing.
-    from flapsim.cli import main
+    from flapsim.cli.main import main
 
     path = tmp_path / "blob.xml"
     path.write_text("""<mujoco><worldbody><body pos="0 0 1"><freejoint/><geom size="0.1"/>

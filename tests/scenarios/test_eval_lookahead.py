@@ -2,8 +2,8 @@
 leave a core per worker free, and a journal resumes whatever the setting (wall time only)."""
 
 from flapsim import scenarios
-from flapsim.bird import controller as C
-from flapsim.commands.eval import lookahead_runs
+from flapsim.bird.control import controller as C
+from flapsim.cli.commands.eval import lookahead_runs
 from flapsim.scenarios.journal import fingerprint
 
 

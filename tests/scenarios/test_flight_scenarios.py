@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from flapsim import scenarios
-from flapsim.bird.tasks import Forest, PushSpec, Tree
-from flapsim.cli import main
-from flapsim.errors import InputError
+from flapsim.bird.tasks.flight_tasks import Forest, PushSpec, Tree
+from flapsim.cli.main import main
+from flapsim.core.errors import InputError
 from flapsim.scenarios.flight import min_separation, primary_name
 
 
@@ -42,8 +42,8 @@ def test_the_paper_counts_plucked_primaries_from_the_outermost():
 
 
 def test_plucked_feathers_lose_exactly_their_triangles_area():
-    from flapsim.bird.flight import DoveFlight
-    from flapsim.bird.model import Dove, left_feathers
+    from flapsim.bird.body.model import Dove, left_feathers
+    from flapsim.bird.flight.dove_flight import DoveFlight
 
     dove = Dove.load()
     names = ("l_p9", "l_p6", "l_p3")
@@ -66,7 +66,7 @@ def test_a_push_is_xfrc_applied_for_its_steps_only():
     # push's controls carry ctrl and xfrc_applied in mj_getState's own layout)
     from mujoco import rollout
 
-    from flapsim.bird.cycle import Push, _push_controls
+    from flapsim.bird.flight.cycle import Push, _push_controls
 
     m = mujoco.MjModel.from_xml_string(
         '<mujoco><option gravity="0 0 0" timestep="0.001"/><worldbody><body name="b">'
@@ -193,8 +193,8 @@ def test_eval_follows_a_users_3_m_circle_by_slowing_into_it(tmp_path):
     lost on one; without them lost on all seven, 3.6-15.6 m), so the verdicts are asserted
     over five starts: the median start with the corrections stays in the 3 m tube, and
     without them every start leaves it."""
-    from flapsim.bird.path import load_path
-    from flapsim.bird.tasks import Task, fly_task
+    from flapsim.bird.tasks.flight_tasks import Task, fly_task
+    from flapsim.bird.tasks.path_control import load_path
 
     t = np.linspace(0.0, 2 * np.pi, 49)
     f = tmp_path / "c3.csv"
@@ -224,8 +224,8 @@ def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
     db = tmp_path / "modal.db"
     assert main(["train", "--samples", "40", "--feathers", "modal", "--workers", "1",
                  "--no-progress", "--out", str(db)]) == 0
-    from flapsim.bird.database import load_database
-    from flapsim.bird.model import Dove
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.control.database import load_database
 
     h = load_database(db, require_finalized=True).header
     assert h["model_hash"] == Dove.load(feathers="modal").hash() != Dove.load().hash()
@@ -237,7 +237,7 @@ def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
     # its video, drawn on the modal model (its qpos has the modes' coordinates)
     assert (tmp_path / "v" / "wind-gusts.mp4").stat().st_size > 10_000
     capsys.readouterr()
-    from flapsim.bird.controller import bundled_database_path
+    from flapsim.bird.control.controller import bundled_database_path
 
     assert main(["eval", "--scenario", "wind-gusts", "--feathers", "modal", "--db",
                  str(bundled_database_path())]) == 2
@@ -249,7 +249,7 @@ def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
 def test_every_flight_scenario_runs_its_quick_variant_to_a_verdict(tmp_path):
     # every runner end to end (short variants, two worker processes): each gives a verdict
     # and its own numbers; 'failed' (a runner's error) or 'diverged' would be a bug here
-    from flapsim.commands.eval import execute
+    from flapsim.cli.commands.eval import execute
 
     names = scenarios.names(family="flight", all_only=True)
     opts = scenarios.EvalOptions(quick=True, plots_dir=str(tmp_path))
@@ -292,7 +292,7 @@ def test_table1_trains_its_databases_and_counts_k_among_the_searched_samples(tmp
     out = json.loads(js.read_text())
     rows = out["table1"]
     # the bundled database's seed by default (its header: seed 2), in the databases made too
-    from flapsim.bird.database import load_database
+    from flapsim.bird.control.database import load_database
 
     assert out["seed"] == 2
     assert load_database(tmp_path / "dbs" / "phase1_100.db").header["seed"] == 2
@@ -311,8 +311,8 @@ def test_the_modal_dove_survives_an_8_newton_push_backwards():
     distance is near that 1.5 m on some starts (session 23, seven starts under 1 mm/s apart on
     an Intel Xeon: 0.91-1.48 m), so it is asserted over three starts' median; the tube and
     the path's end on every one."""
-    from flapsim.bird import paths
-    from flapsim.bird.tasks import Task, fly_task
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.flight_tasks import Task, fly_task
     from flapsim.scenarios.flight import PUSH_BACK_M, PUSH_TUBE_M
 
     ends = []
@@ -332,9 +332,9 @@ def test_what_a_path_asks_per_wingbeat_is_the_arc_over_the_radius():
     # a bird exactly on a circle of radius R, flying d per wingbeat: the path's heading turns
     # d / R rad a wingbeat (left, +); along the reversed circle, -d / R. The spline's
     # curvature is within 0.5 % of the circle's away from its ends (48 points a turn)
-    from flapsim.bird import paths
-    from flapsim.bird.path import FlightPath
-    from flapsim.bird.tasks import _path_steering
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.flight_tasks import _path_steering
+    from flapsim.bird.tasks.path_control import FlightPath
 
     R, d = 5.0, 0.7
     path = paths.inclined_circle(R, 0.0, turns=1.0)
@@ -355,9 +355,9 @@ def test_eval_options_reach_every_flight(monkeypatch):
     (None: the path target's or the dove's defaults, applied in fly_task)."""
     import dataclasses
 
-    import flapsim.bird.tasks as tasks_mod
-    from flapsim.bird.paths import straight
-    from flapsim.bird.tasks import Task
+    import flapsim.bird.tasks.flight_tasks as tasks_mod
+    from flapsim.bird.tasks.flight_tasks import Task
+    from flapsim.bird.tasks.path_shapes import straight
     from flapsim.scenarios import EvalOptions
     from flapsim.scenarios.flight import _fly_task
 
@@ -379,7 +379,7 @@ def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
     """Every Table I run is the paper's protocol (sec. 7): k fixed, the bank of the wingbeat's
     end, P0 every wingbeat, the trim's angle of attack in turns, the speed asked everywhere,
     independent speed and height loops; what the run was asked otherwise is overridden."""
-    from flapsim.commands.eval import _paper_protocol
+    from flapsim.cli.commands.eval import _paper_protocol
     from flapsim.scenarios import EvalOptions
 
     o = EvalOptions(k_dense=100, bank_lead_s=0.3, carry=0.4, aoa_per_g_deg=30.0, speed=6.0,
@@ -439,7 +439,7 @@ def test_a_family_name_selects_its_part_of_all():
     # 'flight' and 'swim' split 'all' by family (what --starts needs: flight only), in order
     import argparse
 
-    from flapsim.commands.eval import _names
+    from flapsim.cli.commands.eval import _names
 
     every = scenarios.names(all_only=True)
     for family in ("flight", "swim"):
@@ -502,7 +502,7 @@ def test_the_slow_sinusoid_flies_the_sharp_path_at_the_captures_speed(monkeypatc
     # arithmetic, on ranges chosen each side of -12.5 and +7.0)
     from types import SimpleNamespace
 
-    from flapsim.commands.eval import print_table
+    from flapsim.cli.commands.eval import print_table
     from flapsim.scenarios import flight
 
     flown = []
@@ -545,7 +545,7 @@ def test_a_users_path_is_told_when_its_turn_asks_more_lift_than_the_wing_holds(
     # 3.3 m at 5.5 m/s. Modal feathers were not measured: nothing is said.
     from types import SimpleNamespace
 
-    from flapsim.commands.eval import print_table
+    from flapsim.cli.commands.eval import print_table
     from flapsim.scenarios import flight
 
     monkeypatch.setattr(flight, "_fly", lambda sc, opt, task, tag="": (SimpleNamespace(
@@ -578,8 +578,8 @@ def test_the_steering_in_the_tube_stops_where_the_bird_left_it():
     # a tube too narrow for the sharp sinusoid: the bird leaves it within a few wingbeats and
     # flies on; the range "in the tube" covers the wingbeats that ended within it, found here
     # from the flown positions and the path
-    from flapsim.bird import paths
-    from flapsim.bird.tasks import Task, fly_task
+    from flapsim.bird.tasks import path_shapes as paths
+    from flapsim.bird.tasks.flight_tasks import Task, fly_task
 
     task = Task(paths.sinusoid(amplitude_m=3.0, wavelength_m=10.0, waves=1.0), tube_m=0.5)
     r = fly_task(task)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 from flapsim.scenarios import EvalOptions
 from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path
 
@@ -21,7 +21,7 @@ RUNS = "wind-steady,wind-gusts,push-up"  # quick variants: a few seconds each on
 
 
 def _eval(tmp_path, out, *extra):
-    cmd = [sys.executable, "-m", "flapsim.cli", "eval", "--scenario", RUNS, "--quick",
+    cmd = [sys.executable, "-m", "flapsim.cli.main", "eval", "--scenario", RUNS, "--quick",
            "--workers", "1", "--json", out, *extra]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
@@ -136,8 +136,8 @@ def test_a_run_written_when_ctrl_c_lands_is_kept(tmp_path, monkeypatch):
 def test_a_run_whose_result_never_came_back_is_an_error_not_a_shorter_table(monkeypatch):
     # an executor that returns fewer results than runs (as one did when two chunks finished
     # in the same wait): eval must say so in one line, not print a table without the run
-    from flapsim.commands.eval import execute
-    from flapsim.parallel import ChunkExecutor, WorkerError
+    from flapsim.cli.commands.eval import execute
+    from flapsim.core.parallel import ChunkExecutor, WorkerError
     from flapsim.scenarios import EvalOptions
 
     monkeypatch.setattr(ChunkExecutor, "map_unordered", lambda self, chunks: iter(()))

@@ -4,11 +4,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import ProviderError
+from flapsim.core.callbacks import DISPATCHER, register
+from flapsim.core.errors import ProviderError
+from flapsim.core.loading import load_model
 from flapsim.fluid.flow import FlowField, Uniform
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
-from flapsim.sim.callbacks import DISPATCHER, register
-from flapsim.sim.loading import load_model
 
 XML = """<mujoco><option gravity="0 0 -9.81" timestep="0.002"/><worldbody>
   <body name="p" pos="0 0 1"><freejoint/><geom type="box" size="{s} {s} .002" mass="{m}"/>

@@ -4,9 +4,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import ModelError
-from flapsim.sim.loading import load_model
-from flapsim.sim.pd import affine_gains, pd_ctrl, pd_torque
+from flapsim.core.errors import ModelError
+from flapsim.core.loading import load_model
+from flapsim.core.pd import affine_gains, pd_ctrl, pd_torque
 
 XML = """<mujoco><worldbody><body><joint name="a" axis="0 0 1"/><geom size=".1" mass="1"/>
 <body pos=".2 0 0"><joint name="b" axis="0 1 0"/><geom size=".05" mass=".2"/></body></body>

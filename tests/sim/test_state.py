@@ -4,9 +4,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import InputError
-from flapsim.sim import state
-from flapsim.sim.loading import load_model
+from flapsim.core import state
+from flapsim.core.errors import InputError
+from flapsim.core.loading import load_model
 
 XML = """<mujoco><option timestep="0.002"/><worldbody><body pos="0 0 1"><freejoint/>
 <geom type="box" size=".1 .05 .02" mass="1"/><body pos=".1 0 0"><joint axis="0 1 0"/>

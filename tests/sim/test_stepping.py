@@ -4,10 +4,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import SimulationError
-from flapsim.sim.callbacks import register
-from flapsim.sim.loading import load_model
-from flapsim.sim.stepping import step
+from flapsim.core.callbacks import register
+from flapsim.core.errors import SimulationError
+from flapsim.core.loading import load_model
+from flapsim.core.stepping import step
 
 XML = """<mujoco><option timestep="0.01"/><worldbody><body><joint type="hinge"/>
   <geom size=".1" mass="1"/></body></worldbody></mujoco>"""

@@ -9,13 +9,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import DataFileError
+from flapsim.core.errors import DataFileError
 from flapsim.scenarios.swim import _metrics
-from flapsim.swim import cycle as cyc
+from flapsim.swim import per_cycle as cyc
 from flapsim.swim.continuous import PALM_SIDE, calibration_settings
+from flapsim.swim.goals import figure_eight
 from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import load_stroke
-from flapsim.swim.targets import figure_eight
 
 
 def test_the_palm_faces_the_crawls_pull():
@@ -140,9 +140,9 @@ def test_hand_rule_aim_turns_the_desired_direction(aim, bearing, expect):
     import dataclasses
 
     from flapsim.swim.continuous import HandRules
+    from flapsim.swim.goals import Heading
     from flapsim.swim.layers import BasicStrokeLayer
     from flapsim.swim.model import Swimmer
-    from flapsim.swim.targets import Heading
 
     st = dataclasses.replace(load_stroke("breaststroke"), hand_rule_aim=aim)
     sw = Swimmer()

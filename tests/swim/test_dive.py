@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from flapsim.swim.dive import EXHALED_L, SurfaceDive
+from flapsim.swim.goals import Waypoints
 from flapsim.swim.model import SEGMENTS, Swimmer, SwimmerParams
-from flapsim.swim.targets import Waypoints
 
 G = 9.81
 

@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 from flapsim import __version__
-from flapsim.errors import DataFileError, InputError
-from flapsim.io import _jsonable
-from flapsim.swim import cycle as cyc
+from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.io import _jsonable
+from flapsim.swim import per_cycle as cyc
+from flapsim.swim.goals import Point, Waypoints, load_trajectory
 from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.model import Swimmer
 from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import load_stroke, parse_stroke, stroke_path, stroke_tables
-from flapsim.swim.targets import Point, Waypoints, load_trajectory
 
 
 def _table(angles_deg: dict, speeds=(0.0, 1.0), weights=(0.5, 1.0)) -> cyc.CycleTable:
@@ -208,7 +208,7 @@ def test_targets_in_3d_and_trajectory_files(tmp_path):
 def test_calibration_refuses_to_assemble_without_every_cycle(tmp_path, monkeypatch):
     # an executor that brings nothing back: the tables would hold zeros for the missing
     # cycles, so calibrate says so in one line and writes no table
-    from flapsim.parallel import ChunkExecutor, WorkerError
+    from flapsim.core.parallel import ChunkExecutor, WorkerError
 
     monkeypatch.setattr(ChunkExecutor, "map_unordered", lambda self, chunks: iter(()))
     out = tmp_path / "c.cycle.json"

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.errors import DataFileError, InputError
+from flapsim.core.errors import DataFileError, InputError
 from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.simulate import swim

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from flapsim import cli
-from flapsim.errors import InputError
+from flapsim.core.errors import InputError
 from flapsim.swim.sweep import sweep, table
 
 

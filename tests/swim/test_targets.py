@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from flapsim.errors import DataFileError, InputError
+from flapsim.core.errors import DataFileError, InputError
+from flapsim.swim.goals import Path, Point, figure_eight, load_path
 from flapsim.swim.simulate import swim
-from flapsim.swim.targets import Path, Point, figure_eight, load_path
 
 
 def test_path_geometry():

@@ -31,7 +31,7 @@ def _open_swim_viewer(xvfb_display, out: Path, seconds: float):
     virtual display: (the process, its window, the environment it runs in)."""
     env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
     app = xvfb_display.spawn(
-        [sys.executable, "-m", "flapsim.cli", "swim", "--viewer", "--stroke", "crawl",
+        [sys.executable, "-m", "flapsim.cli.main", "swim", "--viewer", "--stroke", "crawl",
          "--seconds", f"{seconds:g}", "--layers", "basic", "--json", str(out)], env)
     return app, xvfb_display.window(app, env, timeout=40), env
 
@@ -59,7 +59,7 @@ def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
 
 def test_viewer_places_the_target_where_it_is_double_clicked_under_xvfb(tmp_path, xvfb_display):
     # the paper's user places the target with the mouse. The tracking camera looks at the
-    # swimmer's centre from 3 m away, 15 deg above and from azimuth 30 deg (flapsim.viewer),
+    # swimmer's centre from 3 m away, 15 deg above and from azimuth 30 deg (flapsim.render.viewer),
     # so a double-click at the window's centre lands on the swimmer, or on the water along
     # that bearing: past the swimmer while its centre is above the surface (at the start it
     # floats high, ~0.4 m: 0.4 / tan 15 deg = 1.5 m past), short of it once under. Either

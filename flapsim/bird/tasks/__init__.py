@@ -1,0 +1,2 @@
+"""What the dove is asked to do: path control, path shapes, judged flight tasks and the
+interactive viewer."""

@@ -1,0 +1,226 @@
+"""``flapsim animate --gait NAME``: kinematic modal gaits of the dog and the human
+(Kry et al. 2009, sections 4.2-4.3, Fig. 3), with modes picked by heuristics A-G."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from flapsim.core.errors import InputError
+from flapsim.core.validate import add_input_arg, add_output_arg, quantity
+
+HELP = "kinematic modal gait (walk, run, trot, ...) of the dog or human: npz, video, BVH"
+SEED_HELP = "accepted for uniformity; the animation is deterministic, --seed changes nothing"
+
+#: The most frames one animation may have (--seconds x --fps): the trajectory is held in
+#: memory (about 1 kB a frame for the human) and every frame is rendered for a video.
+MAX_FRAMES = 100_000
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--gait", default="walk",
+                   help="gait: trot, amble, gallop (dog); walk, run, jump, jumping_jacks, "
+                   "run_head, push_cart (human); 'list' shows them (default walk)")
+    add_input_arg(p, "--model", may_be_name=True, default=None,
+                  help="dog, human, human_cart or an MJCF path with the labels the heuristics "
+                   "read (default: the gait's own creature)")
+    p.add_argument("--seconds", type=quantity("seconds"), default=2.0,
+                   help=f"animation length, s (default 2; at most {MAX_FRAMES} frames in all)")
+    p.add_argument("--fps", type=quantity("fps"), default=30.0, help="frames per second (default 30)")
+    p.add_argument("--amplitude-scale", type=quantity("scale"), default=1.0,
+                   help="multiply every mode amplitude and offset (stride length; default 1)")
+    p.add_argument("--freq", type=quantity("freq"), default=None,
+                   help="gait frequency, Hz (default: the paper's 2 Hz)")
+    p.add_argument("--soft-limit-deg", type=quantity("soft_limit_deg"), default=5.0,
+                   help="dtheta_soft: the most a joint may pass its limit, deg (default 5)")
+    p.add_argument("--stiffness-scale", type=quantity("scale"), default=1.0,
+                   help="multiply the joint stiffness before the analysis (default 1)")
+    p.add_argument("--tune-stiffness", action="store_true",
+                   help="first find the smallest uniform stiffness scale that holds the rest "
+                   "pose under gravity in simulation, and analyse with it")
+    p.add_argument("--project", action="store_true",
+                   help="pull every frame back onto the constraints (closed loops, fixed head); "
+                   "otherwise they hold to first order only, as in the paper")
+    add_output_arg(p, "--npz", kinds=(".npz",), help="write the joint trajectory (times, qpos)")
+    add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
+                   help="write an .mp4 or .gif of the animation")
+    add_output_arg(p, "--bvh", kinds=(".bvh",), help="write the animation as BVH (cm, z up)")
+    add_output_arg(p, "--sheet", kinds=(".png",), metavar="PNG",
+                   help="write an offscreen contact sheet of one cycle (mode browser view)")
+    p.add_argument("--browse", action="store_true",
+                   help="open the interactive mode browser (sliders per mode; needs a display)")
+
+
+def _list() -> dict:
+    from flapsim.modal.gaits import GAITS
+
+    print(f"{'gait':<14} {'model':<11} {'selection':<11} description")
+    for g in GAITS.values():
+        print(f"{g.name:<14} {g.model:<11} {g.selection:<11} {g.description}")
+    return {"gaits": {g.name: {"model": g.model, "selection": g.selection,
+                               "description": g.description} for g in GAITS.values()}}
+
+
+def run(args: argparse.Namespace) -> dict:
+    import numpy as np
+
+    from flapsim.modal import animate as anim_mod
+    from flapsim.modal.gaits import MODELS, gait, plan_gait, resolve_model
+    from flapsim.modal.heuristics import CATEGORY_NAMES
+
+    if args.gait == "list":
+        return _list()
+    g = gait(args.gait)
+    frames = int(round(args.seconds * args.fps))
+    if frames > MAX_FRAMES:
+        raise InputError(f"--seconds {args.seconds:g} at --fps {args.fps:g} is {frames} frames; at "
+                         f"most {MAX_FRAMES} (the trajectory is held in memory): shorten it or "
+                         "lower --fps")
+    spec = args.model or g.model
+    if spec in MODELS and spec != g.model and not (spec == "human_cart" and g.model == "human"):
+        raise InputError(f"gait {g.name!r} is for --model {g.model}, not {spec}")
+    model, label = resolve_model(spec)
+
+    scale = args.stiffness_scale
+    tuning = None
+    if args.tune_stiffness:
+        from flapsim.modal.stiffness import tune_stiffness
+
+        keyframe = g.keyframe if g.keyframe and _has_key(model, g.keyframe) else None
+        res = tune_stiffness(model, keyframe=keyframe)
+        scale *= res.scale
+        tuning = {"scale": res.scale, "failing_scale": res.failing_scale,
+                  "trials": [{"scale": t.scale, "max_dev_deg": math.degrees(t.max_dev_rad),
+                              "worst_joint": t.worst_joint, "holds": t.holds}
+                             for t in res.trials]}
+        print(f"stiffness tuning: smallest scale holding the rest pose = {res.scale:.3g} "
+              f"(x{res.failing_scale:.3g} sags more than 10 deg), {len(res.trials)} simulations")
+
+    plan = plan_gait(model, g, stiffness_scale=scale, amplitude_scale=args.amplitude_scale,
+                     freq_hz=args.freq)
+    a = plan.analysis
+    n = max(int(round(args.seconds * args.fps)), 2)
+    times = np.arange(n) / args.fps
+    limits = anim_mod.SoftLimits(soft_rad=math.radians(args.soft_limit_deg))
+    projector = (anim_mod.ConstraintProjector(model, a.rest_qpos, plan.constraints)
+                 if args.project else None)
+    anim = anim_mod.animate(model, a.rest_qpos, plan.components, times, limits, projector)
+    checks = constraint_checks(model, plan, anim)
+
+    print(f"{label}: gait {g.name} ({g.selection}; paper: {g.paper})")
+    print(f"analysis: {a.nv} dofs, {a.n_modes} modes ({a.n_rigid} rigid)"
+          + (f", constraints {', '.join(a.constraint_labels)}" if a.constraint_labels else ""))
+    print(f"{'mode':>5} {'f_nat_Hz':>9} {'alpha':>6} {'gamma':>6} {'f_Hz':>5}  categories")
+    for c in plan.chosen:
+        cats = "; ".join(f"{k} {CATEGORY_NAMES.get(k, 'rigid vertical bounce')}"
+                         for k in c["categories"])
+        print(f"{c['mode']!s:>5} {c['freq_hz_natural']:>9.3g} {c['amplitude']:>6.2f} "
+              f"{c['phase_deg']:>6.0f} {c['freq_hz']:>5.2g}  {cats}")
+    rejected = [{"mode": m, "freq_hz": float(a.freqs_hz[m]), "why": why}
+                for m, why in plan.rejected().items()]
+    shown = [r for r in rejected if "twist" in r["why"] or "jack" in r["why"]][:4]
+    for r in shown:
+        print(f"rejected mode {r['mode']} ({r['freq_hz']:.3g} Hz): {r['why']}")
+    print(f"{n} frames at {args.fps:g} fps; largest joint-limit overshoot "
+          f"{math.degrees(anim.max_limit_overshoot_rad):.2f} deg (soft limit "
+          f"{args.soft_limit_deg:g} deg)")
+    for k, v in checks.items():
+        print(f"{k}: {v:.3g}")
+
+    out = {
+        "model": label,
+        "gait": g.name,
+        "selection": g.selection,
+        "paper_parameters": g.paper,
+        "nv": a.nv,
+        "n_modes": a.n_modes,
+        "n_rigid": a.n_rigid,
+        "constraints": list(a.constraint_labels),
+        "stiffness_scale": scale,
+        "stiffness_tuning": tuning,
+        "chosen": [dict(c, category_names=[CATEGORY_NAMES.get(k, "rigid vertical bounce")
+                                           for k in c["categories"]]) for c in plan.chosen],
+        "merged": plan.merged,
+        "best_per_category": {k: v[0] for k, v in plan.selection.best.items()},
+        "rejected": rejected,
+        "frames": n,
+        "fps": args.fps,
+        "max_limit_overshoot_deg": math.degrees(anim.max_limit_overshoot_rad),
+        "soft_limit_deg": args.soft_limit_deg,
+        "constraint_residual": anim.constraint_residual,
+        "checks": checks,
+    }
+    if args.npz:
+        anim_mod.save_trajectory(args.npz, model, anim)
+        print(f"trajectory -> {args.npz}")
+        out["npz"] = args.npz
+    if args.bvh:
+        from flapsim.modal.bvh import write_bvh
+
+        ch = write_bvh(args.bvh, model, anim.qpos, 1.0 / args.fps)
+        print(f"BVH ({ch} channels) -> {args.bvh}")
+        out["bvh"] = args.bvh
+    if args.sheet:
+        from flapsim.modal.browser import contact_sheet
+
+        info = contact_sheet(plan, model, args.sheet)
+        print(f"contact sheet ({info['frames']} frames of one {info['period_s']:.2g} s cycle) "
+              f"-> {args.sheet}")
+        out["sheet"] = args.sheet
+    if args.video:
+        from flapsim.modal.video import render_poses
+
+        frames = render_poses(model, list(anim.qpos), args.video, fps=args.fps, track=True)
+        print(f"video ({frames} frames) -> {args.video}")
+        out["video"] = args.video
+    if args.browse:
+        import os
+
+        if not os.environ.get("DISPLAY"):
+            raise InputError("--browse needs a display (DISPLAY is not set); use --sheet PNG")
+        from flapsim.modal.browser import ModeBrowser
+
+        ModeBrowser(plan, model).show()
+    return out
+
+
+def _has_key(model, name: str) -> bool:
+    import mujoco
+
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name) >= 0
+
+
+def constraint_checks(model, plan, anim) -> dict:
+    """First-order and finite-amplitude checks of the gait's constraints."""
+    import mujoco
+    import numpy as np
+
+    from flapsim.modal.gaits import head_orientation_error
+
+    a = plan.analysis
+    out: dict[str, float] = {}
+    if a.constraint_jacobian.shape[0]:
+        # First order: G phi for every used shape, relative to |phi| (0 = respected).
+        worst = 0.0
+        for c in plan.components:
+            phi = np.asarray(c.shape)
+            worst = max(worst, float(np.linalg.norm(a.constraint_jacobian @ phi))
+                        / max(float(np.linalg.norm(phi)), 1e-300))
+        out["first_order_constraint_violation"] = worst
+    for c in plan.constraints:
+        if c.kind == "orientation":
+            out[f"max_{c.names[0]}_rotation_deg"] = math.degrees(
+                head_orientation_error(model, anim.qpos, a.rest_qpos, c.names[0]))
+    if model.neq:
+        d = mujoco.MjData(model)
+        gap = 0.0
+        for q in anim.qpos:
+            d.qpos[:] = q
+            mujoco.mj_forward(model, d)
+            for e in range(model.neq):
+                if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT and model.eq_objtype[e] == \
+                        mujoco.mjtObj.mjOBJ_SITE:
+                    s1, s2 = model.eq_obj1id[e], model.eq_obj2id[e]
+                    gap = max(gap, float(np.linalg.norm(d.site_xpos[s1] - d.site_xpos[s2])))
+        out["max_hand_handle_gap_m"] = gap
+    return out

@@ -1,1 +1,0 @@
-"""MuJoCo glue shared by every system: loading, the passive-force dispatcher, PD, state."""

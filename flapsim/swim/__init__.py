@@ -1,0 +1,1 @@
+"""System 2: layered swimming (Yang, Laszlo, Singh 2004)."""
