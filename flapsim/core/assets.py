@@ -12,7 +12,7 @@ from pathlib import Path
 from flapsim.core.errors import ModelError
 
 ASSET_FOLDERS = ("bird_mjcf", "swimmer_mjcf", "creatures")
-_PACKAGE_DIR = Path(__file__).resolve().parent
+_PACKAGE_DIR = Path(__file__).resolve().parent.parent  # flapsim/, above core/
 
 
 def asset_dir(name: str) -> Path:
