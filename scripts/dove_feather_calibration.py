@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from flapsim.bird.body.feather_modes import ModalParams
-from flapsim.bird.body.model import DoveParams
+from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.calibration import record, summary
 from flapsim.bird.flight.dove_flight import FlightConfig, wind_tunnel
 from flapsim.bird.flight.wingbeat import p0, with_tail_bias

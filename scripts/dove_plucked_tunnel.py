@@ -16,7 +16,7 @@ import dataclasses
 
 import numpy as np
 
-from flapsim.bird.body.model import DOF_NAMES, DoveParams
+from flapsim.bird.body.params import DOF_NAMES, DoveParams
 from flapsim.bird.flight.dove_flight import FlightConfig, wind_tunnel
 from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 from flapsim.scenarios.flight import primary_name

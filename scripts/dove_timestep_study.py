@@ -15,7 +15,8 @@ import json
 
 import numpy as np
 
-from flapsim.bird.body.model import Dove, DoveParams
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.dove_flight import flight_metrics, fly
 
 

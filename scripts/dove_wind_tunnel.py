@@ -20,7 +20,8 @@ import argparse
 import mujoco
 import numpy as np
 
-from flapsim.bird.body.model import Dove, DoveParams, build_xml
+from flapsim.bird.body.model import Dove, build_xml
+from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.dove_flight import BODY_TABLE, DoveFlight, FlightConfig, wind_tunnel
 from flapsim.bird.flight.wingbeat import control_table, p0, reference_wingbeat, with_tail_bias
 from flapsim.core.loading import load_model

@@ -46,7 +46,8 @@ import time
 
 import numpy as np
 
-from flapsim.bird.body.model import MIRROR_PERM, Dove
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import MIRROR_PERM
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
 from flapsim.bird.flight.power import wingbeat_balance
 from flapsim.bird.flight.wingbeat import N_PARAMS, p0, with_tail_bias

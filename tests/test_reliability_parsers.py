@@ -180,7 +180,7 @@ def test_swim_path_files(tmp_path, data):
 # -- capture files (flapsim.bird.flight.capture) -----------------------------------------------
 
 def _capture_csv(n_frames: int, columns_cut: int, bad_cell: str | None, dt: float) -> str:
-    from flapsim.bird.body.model import DOF_NAMES
+    from flapsim.bird.body.params import DOF_NAMES
 
     cols = ["time_s"] + [f"{n}_deg" for n in DOF_NAMES]
     cols = cols[: len(cols) - columns_cut]

@@ -101,3 +101,14 @@ def save_npz(path: str | os.PathLike, **arrays: Any) -> None:
             raise InputError(f"cannot save {name!r} to {path}: object arrays need pickles")
     with atomic_path(path, suffix=".npz") as tmp:
         np.savez_compressed(tmp, **arrays)
+
+
+def file_sha256(path: str | Path) -> str:
+    """Content hash of a file (provenance of databases built from other databases)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

@@ -78,7 +78,7 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
     providers are registered on it, so nothing is simulated here). Frames stream to the
     file (memory stays bounded); ``progress`` shows a bar (tqdm, on stderr).
     ``before_frame(data, renderer)``, if given, runs after each frame's ``mj_forward``: e.g. to
-    place bent feathers (:class:`flapsim.bird.body.feather_dynamics.FeatherDrawing`).
+    place bent feathers (:class:`flapsim.bird.body.drawing.FeatherDrawing`).
     """
     frames = np.asarray(qpos_frames, dtype=float)
     if frames.ndim != 2 or frames.shape[1] != model.nq:

@@ -27,7 +27,7 @@ import numpy as np
 
 from flapsim.core.assets import asset_path
 from flapsim.core.callbacks import DISPATCHER, Registration
-from flapsim.core.errors import InputError, ModelError
+from flapsim.core.errors import InputError, ModelError, SimulationError
 from flapsim.fluid.buoyancy import Buoyancy, BuoyancyParams
 from flapsim.fluid.coefficients import hoerner_plate
 from flapsim.fluid.flow import FlowField
@@ -429,3 +429,21 @@ class Swimmer:
     def volume(self) -> float:
         """Body volume including the lungs [m^3]."""
         return self.buoyancy.total_volume
+
+
+#: MuJoCo's divergence warnings: it resets a diverged state (finite again) and only counts
+#: these, so they are read after every step.
+_BAD = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                         mujoco.mjtWarning.mjWARN_BADQACC)]
+
+
+def check_diverged(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """One-line :class:`SimulationError` when the swim diverged: a force provider's own
+    check, MuJoCo's divergence warnings, or a non-finite state."""
+    DISPATCHER.check(d)
+    if (any(d.warning[w].number for w in _BAD)
+            or not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel)))):
+        raise SimulationError(
+            f"the swimmer diverged at t={d.time:.3f} s: lower the timestep (now "
+            f"{m.opt.timestep:g} s) or the PD gains"
+        )

@@ -45,7 +45,7 @@ from flapsim.core.io import write_json
 from flapsim.swim.continuous import calibration_settings
 from flapsim.swim.feedback import wrap_angle
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
-from flapsim.swim.model import Swimmer, SwimmerParams
+from flapsim.swim.model import Swimmer, SwimmerParams, check_diverged
 from flapsim.swim.strokes import CYCLE_SEQUENCES, STROKE_DIR, Stroke, load_stroke, stroke_tables
 
 log = logging.getLogger(__name__)
@@ -332,7 +332,6 @@ def _swim_cycle(sw: Swimmer, layer: BasicStrokeLayer, trunk: int, fwd: int, head
     every = max(1, int(round(0.02 / dt)))
     atts = []
     i = 0
-    from flapsim.swim.simulate import _check
 
     while layer.cycles == c0:
         if i % every == 0:
@@ -346,8 +345,8 @@ def _swim_cycle(sw: Swimmer, layer: BasicStrokeLayer, trunk: int, fwd: int, head
         mujoco.mj_step(m, d)
         i += 1
         if i % 500 == 0:
-            _check(m, d)
-    _check(m, d)
+            check_diverged(m, d)
+    check_diverged(m, d)
     a = np.asarray(atts)
     mean = np.array([math.atan2(np.sin(a[:, 0]).mean(), np.cos(a[:, 0]).mean()),
                      a[:, 1].mean(), a[:, 2].mean()])

@@ -13,12 +13,11 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from flapsim.core.callbacks import DISPATCHER
-from flapsim.core.errors import InputError, SimulationError
+from flapsim.core.errors import InputError
 from flapsim.fluid.flow import FlowField
 from flapsim.swim.goals import Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
-from flapsim.swim.model import Swimmer, SwimmerParams
+from flapsim.swim.model import Swimmer, SwimmerParams, check_diverged
 from flapsim.swim.strokes import Stroke, load_stroke
 
 log = logging.getLogger(__name__)
@@ -421,8 +420,8 @@ def swim(
                 layer.apply(d, dt)
                 mujoco.mj_step(m, d)
                 if i % 500 == 0:
-                    _check(m, d)
-            _check(m, d)
+                    check_diverged(m, d)
+            check_diverged(m, d)
     finally:
         if renderer is not None:
             renderer.close()
@@ -441,16 +440,3 @@ def swim(
                       body_yaw=np.asarray(yaw))
 
 
-#: MuJoCo's divergence warnings: it resets a diverged state (finite again) and only counts
-_BAD = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
-                         mujoco.mjtWarning.mjWARN_BADQACC)]
-
-
-def _check(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-    DISPATCHER.check(d)
-    if (any(d.warning[w].number for w in _BAD)
-            or not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel)))):
-        raise SimulationError(
-            f"the swimmer diverged at t={d.time:.3f} s: lower the timestep (now "
-            f"{m.opt.timestep:g} s) or the PD gains"
-        )

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from flapsim.bird.body.model import DOF_NAMES, MIRROR_PERM
+from flapsim.bird.body.params import DOF_NAMES, MIRROR_PERM
 from flapsim.bird.flight.capture import (
     DATA_FILE,
     CaptureSet,

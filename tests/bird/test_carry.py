@@ -5,7 +5,8 @@ added to it."""
 import numpy as np
 import pytest
 
-from flapsim.bird.body.model import DOF_NAMES, Dove
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.control.controller import DEFAULT_CARRY, WingbeatController, load_controller
 from flapsim.bird.control.regression import Regressor
 from flapsim.bird.flight import cycle

@@ -6,7 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.body.model import Dove, DoveParams
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import DoveParams
 from flapsim.bird.control.controller import (
     bundled_database_path,
     fly_controlled,

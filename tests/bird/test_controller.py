@@ -18,7 +18,7 @@ from flapsim.bird.control.targets import CruiseTarget, target_state, trim_of_bas
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight
 from flapsim.bird.flight.wingbeat import control_table
-from flapsim.bird.training.sampling import RANGE_TOLERANCE
+from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE
 from flapsim.core.errors import DataFileError
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)

@@ -70,7 +70,7 @@ def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
 
 
 def test_twist_bias_moves_only_the_shoulder_twists():
-    from flapsim.bird.body.model import DOF_NAMES
+    from flapsim.bird.body.params import DOF_NAMES
     from flapsim.bird.flight.wingbeat import p0, with_tail_bias, with_twist_bias
     from flapsim.bird.training.sampling import SamplingConfig
 

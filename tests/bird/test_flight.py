@@ -6,7 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.body.model import Dove, DoveParams
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.capture import reference_capture
 from flapsim.bird.flight.dove_flight import (
     DoveFlight,
@@ -189,7 +190,7 @@ def test_roll_sign_is_right_wing_down_positive(angle_deg):
 
 
 def test_base_flight_fits_the_torque_limits_and_joint_ranges(dove):
-    from flapsim.bird.body.model import DOF_NAMES, dof_ranges, torque_limits
+    from flapsim.bird.body.params import DOF_NAMES, dof_ranges, torque_limits
     from flapsim.bird.flight.wingbeat import control_table
 
     p = with_tail_bias(p0(), 17.0)

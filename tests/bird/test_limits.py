@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from flapsim.bird.body.model import DOF_NAMES
+from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.flight.limits import (
     GRAVITY,
     Candidate,
@@ -98,7 +98,7 @@ def test_free_flight_range_excess_is_the_joints_own_overshoot():
     from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
     from flapsim.bird.flight.limits import free_flight_range_excess
     from flapsim.bird.flight.wingbeat import reference_wingbeat
-    from flapsim.bird.training.sampling import RANGE_TOLERANCE
+    from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE
 
     fl = DoveFlight(Dove.load(), reference_wingbeat())
     try:

@@ -185,7 +185,7 @@ def test_sampling_centre_and_pre_speed_reach_the_sampler():
     (the bundled database's has none of these keys)."""
     import argparse
 
-    from flapsim.bird.body.model import DOF_NAMES
+    from flapsim.bird.body.params import DOF_NAMES
     from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
     from flapsim.cli.commands.train import phase1
 

@@ -8,7 +8,9 @@ import pytest
 
 from flapsim.bird.body.feather_dynamics import ModalFeathers, clamped_feather_xml, dove_feather_modes
 from flapsim.bird.body.feather_modes import ModalParams, ShaftBeam, euler_bernoulli_tip_deflection
-from flapsim.bird.body.model import Dove, DoveParams, _Inertia, _inertial_xml
+from flapsim.bird.body.inertia import _Inertia, _inertial_xml
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, flight_metrics, fly
 from flapsim.fluid.coefficients import get_table
 
@@ -257,7 +259,7 @@ def test_warping_jacobian_and_length(params):
 def _primary_on_twist_hinge(params, k: int = 4):
     """A primary on its twist hinge (the dove's spring, damper and one-sided range), the hinge
     fixed in space, gravity off."""
-    from flapsim.bird.body.model import left_feathers
+    from flapsim.bird.body.params import left_feathers
 
     fe = next(f for f in left_feathers(params) if f.name == f"l_p{k + 1}")
     inert = _Inertia()
@@ -447,7 +449,7 @@ def test_own_weight_sag_matches_the_beam(params, integration):
     secondary, flat and horizontal, in vacuum, sags under its own weight as the full beam
     (all its elements, no modal truncation) does under the same distributed load."""
     from flapsim.bird.body.feather_modes import _quadrature
-    from flapsim.bird.body.model import left_feathers
+    from flapsim.bird.body.params import left_feathers
 
     mp = ModalParams(damping_ratio=1.0, integration=integration)
     fm, m, prov = _clamped(params, "l_s5", mp, density=0.0, gravity=True)

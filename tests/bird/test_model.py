@@ -6,7 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.body.model import DOF_NAMES, Dove, DoveParams, build_xml, can_touch_anything, model_path
+from flapsim.bird.body.model import Dove, build_xml, can_touch_anything, model_path
+from flapsim.bird.body.params import DOF_NAMES, DoveParams
 from flapsim.bird.flight.dove_flight import fly
 from flapsim.core.errors import DataFileError
 
@@ -79,7 +80,7 @@ def test_bad_parameter_file_is_one_line(tmp_path):
 
 
 def test_ranges_contain_the_reference_and_every_capture_cycle_with_margin(dove):
-    from flapsim.bird.body.model import dof_ranges
+    from flapsim.bird.body.params import dof_ranges
     from flapsim.bird.flight.capture import reference_capture
     from flapsim.bird.flight.wingbeat import p0, reference_wingbeat, with_tail_bias
 
@@ -101,7 +102,7 @@ def test_ranges_contain_the_reference_and_every_capture_cycle_with_margin(dove):
 
 
 def test_mjcf_carries_the_ranges_and_torque_limits(dove):
-    from flapsim.bird.body.model import dof_ranges, torque_limits
+    from flapsim.bird.body.params import dof_ranges, torque_limits
 
     m = dove.model
     lo, hi = dof_ranges(dove.params)
@@ -126,7 +127,7 @@ def test_mjcf_carries_the_ranges_and_torque_limits(dove):
 
 
 def test_tail_is_one_fan_that_spreads_with_uniform_spacing():
-    from flapsim.bird.body.model import rectrix_joints
+    from flapsim.bird.body.params import rectrix_joints
 
     dove = Dove.load()
     m, p = dove.model, dove.params

@@ -111,7 +111,8 @@ def test_the_quick_balance_turns_mirror_wingbeats_the_mirror_way():
     # the symmetric dove from a level start does not turn, and a wingbeat and its mirror image
     # turn by equal and opposite angles (the model is mirror-exact: docs/flight.md's mirror starts);
     # 1e-6 deg is float noise over three wingbeats, against the several degrees turned
-    from flapsim.bird.body.model import DOF_NAMES, Dove
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.body.params import DOF_NAMES
     from flapsim.bird.flight.dove_flight import DoveFlight
     from flapsim.bird.flight.power import wingbeat_balance
     from flapsim.bird.flight.wingbeat import mirror_params, p0, with_tail_bias

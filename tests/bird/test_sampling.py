@@ -7,16 +7,10 @@ import pytest
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import pitch_roll
 from flapsim.bird.flight.wingbeat import N_PARAMS, join, p0, reference_wingbeat, split
-from flapsim.bird.training.sampling import (
-    Ellipses,
-    SampleWorker,
-    SamplingConfig,
-    WingbeatSet,
-    in_ranges,
-    pose_quat,
-    project_to_ranges,
-    trajectory_bounds,
-)
+from flapsim.bird.training.sampling import Ellipses, SampleWorker, SamplingConfig, in_ranges, trajectory_bounds
+from flapsim.bird.training.manifold import WingbeatSet
+from flapsim.bird.flight.dove_flight import pose_quat
+from flapsim.bird.flight.wingbeat import project_to_ranges
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)
 SHARED_FLIGHT = True
@@ -167,7 +161,7 @@ def test_snapshots_carry_the_solver_warm_start(worker):
     # a wingbeat that presses the elbows into their joint limit keeps a limit constraint
     # active across the wingbeat boundary: the constraint solver then starts from
     # qacc_warmstart, so a snapshot without it would not repeat bit for bit
-    from flapsim.bird.body.model import DOF_NAMES
+    from flapsim.bird.body.params import DOF_NAMES
 
     fl = worker.flight
     press = worker.P0.copy()

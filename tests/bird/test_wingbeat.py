@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from flapsim.bird.body.model import MIRROR_PERM
+from flapsim.bird.body.params import MIRROR_PERM
 from flapsim.bird.flight.capture import reference_capture
 from flapsim.bird.flight.wingbeat import (
     N_PARAMS,

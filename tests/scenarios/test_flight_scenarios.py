@@ -42,7 +42,8 @@ def test_the_paper_counts_plucked_primaries_from_the_outermost():
 
 
 def test_plucked_feathers_lose_exactly_their_triangles_area():
-    from flapsim.bird.body.model import Dove, left_feathers
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.body.params import left_feathers
     from flapsim.bird.flight.dove_flight import DoveFlight
 
     dove = Dove.load()

@@ -31,9 +31,8 @@ from flapsim.bird.control.regression import (
 )
 from flapsim.bird.control.targets import CruiseTarget
 from flapsim.bird.flight import cycle
-from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
-from flapsim.bird.flight.wingbeat import N_PARAMS, ReferenceWingbeat, p0, with_tail_bias
-from flapsim.bird.training.sampling import pose_quat, project_to_ranges
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, pose_quat
+from flapsim.bird.flight.wingbeat import N_PARAMS, ReferenceWingbeat, p0, project_to_ranges, with_tail_bias
 from flapsim.core.errors import InputError, SimulationError
 from flapsim.fluid.coefficients import get_table
 

@@ -624,7 +624,7 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
     common model hash and provenance entries ``same`` and, under ``provenance.parts``, every
     source's path, sha256, sample count and whole header. Sources of another model, with
     other ``same`` entries, other fields, or unfinished, are one-line errors."""
-    from flapsim.bird.training.sampling import file_sha256
+    from flapsim.core.io import file_sha256
 
     if len(paths) < 2:
         raise InputError(f"a merge needs at least two databases, got {len(paths)}")

@@ -6,17 +6,22 @@ flight's own step (:class:`flapsim.bird.control.controller.WingbeatController`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from flapsim.bird.control.regression import Regressor
 from flapsim.bird.control.targets import rot_z
 from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight
 from flapsim.core.errors import InputError
 
-if TYPE_CHECKING:
-    from flapsim.bird.control.controller import WingbeatController
+
+class FlyingController(Protocol):
+    """What a predictor reads of the controller that owns it: the flight it steers (the
+    controller itself sits a module above, so predictors name only this)."""
+
+    flight: DoveFlight
 
 PREDICT_MODES = ("simulate", "coarse", "regression")
 
@@ -87,7 +92,7 @@ class S0Predictor:
     def reset(self) -> None:
         self.count, self.bias[:], self._last_end, self._delta, self._next = 0, 0.0, None, None, 0
 
-    def reference(self, ctl: WingbeatController, snap: cycle.Snapshot) -> cycle.CycleEnd:
+    def reference(self, ctl: FlyingController, snap: cycle.Snapshot) -> cycle.CycleEnd:
         """P0's end from ``snap``: simulated (and the bias updated) or predicted."""
         import mujoco
 
@@ -151,7 +156,7 @@ class CoarsePredictor:
     _twin: object = None
     _of: object = None
 
-    def reference(self, ctl: WingbeatController, snap: cycle.Snapshot) -> cycle.CycleEnd:
+    def reference(self, ctl: FlyingController, snap: cycle.Snapshot) -> cycle.CycleEnd:
         """P0's end from ``snap``, simulated on the coarse copy."""
         if self._twin is None or self._of is not ctl.flight:
             self._twin, self._of = ctl.flight.twin(self.rate_hz), ctl.flight

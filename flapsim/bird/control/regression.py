@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from flapsim.bird.body.model import MIRROR_PERM
+from flapsim.bird.body.params import MIRROR_PERM
 from flapsim.bird.flight.wingbeat import N_PARAMS
 from flapsim.core.errors import InputError
 

@@ -11,7 +11,8 @@ import mujoco
 import numpy as np
 
 from flapsim.bird.body.feather_modes import ModalParams
-from flapsim.bird.body.model import DOF_NAMES, Dove, DoveParams, build_xml
+from flapsim.bird.body.model import Dove, build_xml
+from flapsim.bird.body.params import DOF_NAMES, DoveParams
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
 from flapsim.bird.flight.wingbeat import control_table, p0, reference_wingbeat, with_tail_bias
 from flapsim.core.loading import load_model

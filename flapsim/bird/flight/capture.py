@@ -11,7 +11,7 @@ reports for its capture (sec. 7). Its metadata says ``synthetic = True``. A user
 real capture loads it with :func:`load_capture` (``.bvh``, ``.csv`` or flapsim ``.npz``)
 and trains the same way.
 
-Conventions: angles in radians in the order of :data:`flapsim.bird.body.model.DOF_NAMES`
+Conventions: angles in radians in the order of :data:`flapsim.bird.body.params.DOF_NAMES`
 (mirror symmetric: equal left/right values are a symmetric pose). A cycle starts at the
 top of the wingbeat (largest mean shoulder elevation), i.e. at the start of the
 downstroke. Cycle bounds are fractional frame indices.
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from flapsim.bird.body.model import DOF_NAMES, MIRROR_PERM, N_DOF
+from flapsim.bird.body.params import DOF_NAMES, MIRROR_PERM, N_DOF
 from flapsim.core.errors import DataFileError, InputError
 from flapsim.core.io import save_npz
 

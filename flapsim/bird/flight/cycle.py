@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from flapsim.bird.body.model import DOF_NAMES
+from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.flight.dove_flight import DoveFlight, reduced_state
 from flapsim.bird.flight.wingbeat import ReferenceWingbeat, control_table, split
 from flapsim.core.callbacks import DISPATCHER

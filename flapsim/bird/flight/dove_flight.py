@@ -20,11 +20,10 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from flapsim.bird.body.model import (
+from flapsim.bird.body.model import Dove, build_xml
+from flapsim.bird.body.params import (
     DOF_NAMES,
-    Dove,
     DoveParams,
-    build_xml,
     fan_ratio,
     rectrix_joints,
     rectrix_spread_gains,
@@ -615,3 +614,29 @@ def _pitch_roll_quat(q: np.ndarray) -> tuple[float, float]:
     R = np.zeros(9)
     mujoco.mju_quat2Mat(R, q)
     return pitch_roll(R.reshape(3, 3))
+
+
+def pose_quat(pitch: float, roll: float, heading: float = 0.0) -> np.ndarray:
+    """Trunk quaternion with nose-up ``pitch``, ``roll`` and ``heading`` (about +z), all rad,
+    such that :func:`flapsim.bird.flight.dove_flight.pitch_roll` gives back (pitch, roll) (for
+    |sin roll| <= cos pitch)."""
+    from flapsim.bird.flight.dove_flight import pitch_roll
+
+    # pitch_roll's roll is the wing axis' elevation, asin(y_z) = asin(sin(roll_euler) cos(pitch))
+    # for a heading-pitch-roll rotation: invert that, so pitch_roll returns ``roll`` exactly
+    roll = float(np.arcsin(np.clip(np.sin(roll) / max(np.cos(pitch), 1e-12), -1.0, 1.0)))
+    qz = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
+    qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])  # +y is left: nose up is -y
+    qx = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])
+    q = np.empty(4)
+    t = np.empty(4)
+    mujoco.mju_mulQuat(t, qz, qy)
+    mujoco.mju_mulQuat(q, t, qx)
+    # follow pitch_roll's roll sign, whatever it is (one convention everywhere)
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    _, r = pitch_roll(R.reshape(3, 3))
+    if abs(roll) > 1e-9 and np.sign(r) != np.sign(roll):
+        qx[1] = -qx[1]
+        mujoco.mju_mulQuat(q, t, qx)
+    return q

@@ -7,7 +7,7 @@ Whether the learned controller follows it is a matter of the database; whether a
 could is a matter of the wing. :func:`search` answers the second: it flies candidate
 wingbeats in the fixed-trunk tunnel (:func:`~flapsim.bird.flight.dove_flight.wind_tunnel`) at a grid of
 trunk pitches and speeds, and keeps only wingbeats the dove can fly in free flight (its joints
-stay within :data:`~flapsim.bird.training.sampling.RANGE_TOLERANCE` of their ranges, the database's own
+stay within :data:`~flapsim.bird.flight.wingbeat.RANGE_TOLERANCE` of their ranges, the database's own
 acceptance rule; torque limits and PD servos as always). The tunnel's cycle-mean forces are
 quasi-steady in the trunk's pose: they neglect the trunk's own heave and pitch over a
 wingbeat.
@@ -107,10 +107,10 @@ def search(candidates: list[Candidate], speeds: list[float], pitches_deg: list[f
            ) -> list[TunnelPoint]:
     """Every candidate at every speed: its free-flight range excess, and (when within the
     database's tolerance) its tunnel forces at every pitch."""
-    from flapsim.bird.body.model import Dove, DoveParams
+    from flapsim.bird.body.model import Dove
+    from flapsim.bird.body.params import DoveParams
     from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, wind_tunnel
-    from flapsim.bird.flight.wingbeat import p0, reference_wingbeat, with_tail_bias
-    from flapsim.bird.training.sampling import RANGE_TOLERANCE
+    from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE, p0, reference_wingbeat, with_tail_bias
 
     params = DoveParams.load()
     ref = reference_wingbeat()

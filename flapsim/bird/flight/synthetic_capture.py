@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from flapsim.bird.body.model import DOF_NAMES, N_DOF
+from flapsim.bird.body.params import DOF_NAMES, N_DOF
 from flapsim.bird.flight.capture import DATA_FILE, SOURCES, CaptureSet, segment_cycles
 
 _COL = {n: k for k, n in enumerate(DOF_NAMES)}

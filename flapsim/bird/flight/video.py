@@ -18,7 +18,7 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
     model, hook = dove.model, None
     frames = np.asarray(qpos_steps)
     if dove.modal is not None:
-        from flapsim.bird.body.feather_dynamics import video_model
+        from flapsim.bird.body.drawing import video_model
 
         model, hook, ix = video_model(dove)
         frames = frames[:, ix]

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flapsim.bird.body.model import DOF_NAMES, MIRROR_PERM, N_DOF
+from flapsim.bird.body.params import DOF_NAMES, MIRROR_PERM, N_DOF
 from flapsim.bird.flight.capture import CaptureSet, reference_capture
 from flapsim.core.errors import InputError
 from flapsim.core.pd import pd_ctrl
@@ -197,3 +197,45 @@ def control_table(ref: ReferenceWingbeat, p: np.ndarray, dt: float, kp: np.ndarr
     q, qd = ref.evaluate(p, t)
     return pd_ctrl(kp, kv, q, qd), q, qd
 
+
+def _deviations(ref: ReferenceWingbeat) -> np.ndarray:
+    """(64, 14) the reference wingbeat's angles about their means over one cycle (asked for
+    every controlled wingbeat: kept on the reference, which is immutable)."""
+    r = ref.__dict__.get("_deviations64")
+    if r is None:
+        r = ref.angles(np.arange(64) / 64) - ref.mean
+        r.setflags(write=False)
+        ref.__dict__["_deviations64"] = r
+    return r
+
+
+def project_to_ranges(ref: ReferenceWingbeat, p: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                      margin: float = np.radians(1.0)) -> np.ndarray:
+    """The nearest wingbeat (per DOF: shrink the scale, then shift) whose commanded
+    trajectory stays ``margin`` inside every joint range."""
+    s, t, w = split(p)
+    s, t = s.copy(), t.copy()
+    m = ref.mean
+    r = _deviations(ref)
+    lo_m, hi_m = lo + margin, hi - margin
+    for i in range(N_DOF):
+        if not np.isfinite(lo[i]) and not np.isfinite(hi[i]):
+            continue
+        dev = s[i] * r[:, i]
+        span = dev.max() - dev.min()
+        room = hi_m[i] - lo_m[i]
+        if span > room and span > 0:
+            s[i] *= room / span
+            dev = s[i] * r[:, i]
+        qmin, qmax = m[i] + t[i] + dev.min(), m[i] + t[i] + dev.max()
+        if qmin < lo_m[i]:
+            t[i] += lo_m[i] - qmin
+        elif qmax > hi_m[i]:
+            t[i] -= qmax - hi_m[i]
+    return join(s, t, w)
+
+
+#: Largest excursion beyond a joint range a simulated sample may make, rad: MuJoCo's limits
+#: are soft (solref), a wingbeat that presses into a limit overshoots it by a fraction of a
+#: degree; more than this means the limit did not hold.
+RANGE_TOLERANCE = np.radians(2.0)

@@ -19,7 +19,7 @@ the simulation loop between wingbeats (the viewer's key callback only queues the
 With a path (``path=``) the bird follows it instead (keys still push and gust) and the
 path is drawn. With modal feathers (``feathers="modal"``, with their own bundled database or
 another trained on that dove) the feathers are drawn bent each frame
-(:class:`flapsim.bird.body.feather_dynamics.FeatherDrawing`, the videos' drawing).
+(:class:`flapsim.bird.body.drawing.FeatherDrawing`, the videos' drawing).
 """
 
 from __future__ import annotations
@@ -137,7 +137,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             target = CruiseTarget(trim, altitude=cfg.height, speed=cmd.speed)
         draw = None
         if fl.dove.modal is not None:
-            from flapsim.bird.body.feather_dynamics import FeatherDrawing
+            from flapsim.bird.body.drawing import FeatherDrawing
 
             draw = FeatherDrawing(fl.dove)
         # what is drawn: the dove with its primaries' twist hinges in the skeleton (a flight

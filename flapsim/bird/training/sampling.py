@@ -32,22 +32,24 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from flapsim.bird.body.model import N_DOF, Dove
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import N_DOF
 from flapsim.bird.control.database import ChunkResult
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.capture import CaptureSet, reference_capture
-from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, pose_quat
 from flapsim.bird.flight.wingbeat import (
     N_PARAMS,
+    RANGE_TOLERANCE,
     ReferenceWingbeat,
-    join,
     p0,
     reference_wingbeat,
-    split,
     with_tail_bias,
     with_twist_bias,
 )
+from flapsim.bird.training.manifold import WingbeatSet
 from flapsim.core.errors import DataFileError, InputError, SimulationError
+from flapsim.core.io import file_sha256
 
 log = logging.getLogger(__name__)
 
@@ -64,18 +66,6 @@ FIELDS: dict[str, tuple[int, ...]] = {
 
 
 # -- wingbeat distribution ------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class WingbeatSet:
-    """Example wingbeats with their steering and elevation (the capture, or discovered ones)."""
-
-    dP: np.ndarray
-    """(n, 29) wingbeat minus P0."""
-    alpha: np.ndarray
-    """(n,) steering per wingbeat, rad (+ left)."""
-    beta: np.ndarray
-    """(n,) elevation per wingbeat, rad (+ up)."""
 
 
 def capture_wingbeats(cap: CaptureSet, ref: ReferenceWingbeat, n_phase: int = 96) -> WingbeatSet:
@@ -170,43 +160,6 @@ def trajectory_bounds(ref: ReferenceWingbeat, p: np.ndarray, n_phase: int = 64
 def in_ranges(ref: ReferenceWingbeat, p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
     qmin, qmax = trajectory_bounds(ref, p)
     return bool(np.all(qmin >= lo) and np.all(qmax <= hi))
-
-
-def _deviations(ref: ReferenceWingbeat) -> np.ndarray:
-    """(64, 14) the reference wingbeat's angles about their means over one cycle (asked for
-    every controlled wingbeat: kept on the reference, which is immutable)."""
-    r = ref.__dict__.get("_deviations64")
-    if r is None:
-        r = ref.angles(np.arange(64) / 64) - ref.mean
-        r.setflags(write=False)
-        ref.__dict__["_deviations64"] = r
-    return r
-
-
-def project_to_ranges(ref: ReferenceWingbeat, p: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                      margin: float = np.radians(1.0)) -> np.ndarray:
-    """The nearest wingbeat (per DOF: shrink the scale, then shift) whose commanded
-    trajectory stays ``margin`` inside every joint range."""
-    s, t, w = split(p)
-    s, t = s.copy(), t.copy()
-    m = ref.mean
-    r = _deviations(ref)
-    lo_m, hi_m = lo + margin, hi - margin
-    for i in range(N_DOF):
-        if not np.isfinite(lo[i]) and not np.isfinite(hi[i]):
-            continue
-        dev = s[i] * r[:, i]
-        span = dev.max() - dev.min()
-        room = hi_m[i] - lo_m[i]
-        if span > room and span > 0:
-            s[i] *= room / span
-            dev = s[i] * r[:, i]
-        qmin, qmax = m[i] + t[i] + dev.min(), m[i] + t[i] + dev.max()
-        if qmin < lo_m[i]:
-            t[i] += lo_m[i] - qmin
-        elif qmax > hi_m[i]:
-            t[i] -= qmax - hi_m[i]
-    return join(s, t, w)
 
 
 # -- configuration and the worker -----------------------------------------------------------
@@ -387,17 +340,6 @@ def load_examples(config: SamplingConfig, ref: ReferenceWingbeat) -> WingbeatSet
     return WingbeatSet(db.arrays["dP"], db.arrays["alpha"], db.arrays["beta"])
 
 
-def file_sha256(path: str | Path) -> str:
-    """Content hash of a file (provenance of databases built from other databases)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 class SampleWorker:
     """Builds the dove once and turns sample indices into samples."""
 
@@ -414,7 +356,7 @@ class SampleWorker:
         self.centre = sampling_centre(self.P0, config) - self.P0
         self.manifold = None
         if config.extrapolate > 0:
-            from flapsim.bird.training.discovery import Manifold
+            from flapsim.bird.training.manifold import Manifold
 
             self.manifold = Manifold.fit(self.examples)
 
@@ -502,33 +444,3 @@ def sampling_centre(P0: np.ndarray, config: SamplingConfig) -> np.ndarray:
     return with_flap_and_beat(P0, config.centre_flap_scale, config.centre_timewarp)
 
 
-#: Largest excursion beyond a joint range a simulated sample may make, rad: MuJoCo's limits
-#: are soft (solref), a wingbeat that presses into a limit overshoots it by a fraction of a
-#: degree; more than this means the limit did not hold.
-RANGE_TOLERANCE = np.radians(2.0)
-
-
-def pose_quat(pitch: float, roll: float, heading: float = 0.0) -> np.ndarray:
-    """Trunk quaternion with nose-up ``pitch``, ``roll`` and ``heading`` (about +z), all rad,
-    such that :func:`flapsim.bird.flight.dove_flight.pitch_roll` gives back (pitch, roll) (for
-    |sin roll| <= cos pitch)."""
-    from flapsim.bird.flight.dove_flight import pitch_roll
-
-    # pitch_roll's roll is the wing axis' elevation, asin(y_z) = asin(sin(roll_euler) cos(pitch))
-    # for a heading-pitch-roll rotation: invert that, so pitch_roll returns ``roll`` exactly
-    roll = float(np.arcsin(np.clip(np.sin(roll) / max(np.cos(pitch), 1e-12), -1.0, 1.0)))
-    qz = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
-    qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])  # +y is left: nose up is -y
-    qx = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])
-    q = np.empty(4)
-    t = np.empty(4)
-    mujoco.mju_mulQuat(t, qz, qy)
-    mujoco.mju_mulQuat(q, t, qx)
-    # follow pitch_roll's roll sign, whatever it is (one convention everywhere)
-    R = np.zeros(9)
-    mujoco.mju_quat2Mat(R, q)
-    _, r = pitch_roll(R.reshape(3, 3))
-    if abs(roll) > 1e-9 and np.sign(r) != np.sign(roll):
-        qx[1] = -qx[1]
-        mujoco.mju_mulQuat(q, t, qx)
-    return q
