@@ -1,4 +1,7 @@
-"""Where a modal dove's step goes, against the rigid dove's, measured in one run.
+"""Where a modal dove's simulation step spends its time, against the rigid dove's, measured in
+one run.
+
+    python studies/dove_feather_cost.py [--wingbeats 1] [--json out.json]
 
 For each of ``rigid`` and ``modal`` feathers, from the same flight state (the base controller
 after two wingbeats), per simulation step:
@@ -11,9 +14,8 @@ after two wingbeats), per simulation step:
 * ``mj_*``: MuJoCo's stages of the bare step called one by one (Python overhead included,
   ~0.3 us each), to see what the mode DOF cost.
 
-Usage: ``python scripts/dove_feather_cost.py [--wingbeats 1] [--json out.json]``. Each time is
-the least of 7 tries in this thread's CPU time; it still varies with machine load (caches,
-shared cores): compare ratios from the same run.
+Each time is the least of 7 tries in this thread's CPU time; it still varies with machine load
+(caches, shared cores): compare ratios from the same run.
 """
 
 from __future__ import annotations
@@ -138,11 +140,16 @@ def measure(kind: str, wingbeats: int) -> dict:
     return out
 
 
-def main() -> dict:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--wingbeats", type=int, default=1)
     ap.add_argument("--json", default=None)
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = parser()
+    a = ap.parse_args(argv)
     res = {k: measure(k, a.wingbeats) for k in ("rigid", "modal")}
     r, mo = res["rigid"], res["modal"]
     res["ratio_flight"] = mo["flight_us"] / r["flight_us"]

@@ -10,8 +10,8 @@ perturbation moves the sweep's centre ``lean`` degrees forwards, which the feedb
 layer uses to keep the swimmer upright (open loop, the upright scull tips over
 forwards or backwards within ~5 s: an unstable balance, as it is for people).
 
-    python scripts/swim_treading_keys.py            # default numbers
-    python scripts/swim_treading_keys.py --pitch 45 --amp 30
+    python studies/swim_treading_keys.py            # default numbers
+    python studies/swim_treading_keys.py --pitch 45 --amp 30
 """
 
 from __future__ import annotations
@@ -91,13 +91,18 @@ def _keys(phases: np.ndarray, values: np.ndarray) -> str:
     return "[" + ", ".join(f"[{p:.3f}, {v:.0f}]" for p, v in zip(phases, values, strict=True)) + "]"
 
 
-def main(argv: list[str] | None = None) -> int:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--amp", type=float, default=35.0, help="sweep half-angle [deg]")
     ap.add_argument("--elev", type=float, default=10.0, help="arm below horizontal [deg]")
     ap.add_argument("--pitch", type=float, default=55.0, help="palm pitch [deg]")
     ap.add_argument("--lean", type=float, default=25.0, help="lean perturbation [deg]")
     ap.add_argument("--keys", type=int, default=8)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = parser()
     a = ap.parse_args(argv)
     arm = LeftArm()
     phases = np.arange(a.keys) / a.keys

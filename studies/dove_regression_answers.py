@@ -7,7 +7,7 @@ carried base, and the answer is flown once, without corrections. The error is th
 ranking error (the bundled database's weights for all, so that the numbers compare), overall,
 without the forward speed (which no wingbeat reaches in a tight turn), and the roll alone.
 
-    PYTHONPATH=. python scripts/dove_answer_study.py [--db seed1.db,seed3.db,...] [--json out.json]
+    python studies/dove_regression_answers.py [--db seed1.db,seed3.db,...] [--json out.json]
 
 Session 21 found the draws alike in every component but the roll (see docs/flight_log.md, "Other
 draws, and twice the samples"). About a minute a database on one core.
@@ -86,11 +86,16 @@ def answer_errors(ctl, fl, log: list[dict], w: np.ndarray) -> dict:
             "diverged": int(np.isnan(total).sum())}
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--db", default="", help="comma-separated databases to compare with the bundled one")
     ap.add_argument("--json", default=None)
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     fl, ctl = build_flight(Task(paths.helix(4.0, 0.0, 1.0)))
     try:
         log = log_requests(ctl)

@@ -7,7 +7,7 @@ and the muscles' torque limits stay as they are. The objective is the forward sp
 over a short swim from rest, less penalties for sinking the head and for muscle power
 above a cap (so the optimiser cannot buy speed with superhuman effort).
 
-    python scripts/swim_tune_stroke.py crawl --generations 25 --out /tmp/crawl_tuned.toml
+    python studies/swim_tune_stroke.py crawl --generations 25 --out /tmp/crawl_tuned.toml
 
 The result is written as a stroke file (comments are not kept: copy the tuned numbers
 into the bundled file by hand, with the reason next to them). Resumable: every
@@ -28,7 +28,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from flapsim.core.errors import FlapsimError
 from flapsim.core.io import atomic_path
+from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import parse_stroke, stroke_path
 
 # (kind, dof, index, half-width [deg]); kinds: "key" moves one keyframe value, "all"
@@ -125,10 +127,6 @@ RANGES = {"elbow_l.flex": (0.0, 150.0), "elbow_l.pronation": (-90.0, 90.0),
 
 def _evaluate(args: tuple) -> tuple[float, dict]:
     raw, seconds, head_min, power_cap, drift_weight, objective, breathe, breath_height = args
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    from flapsim.core.errors import FlapsimError
-    from flapsim.swim.simulate import swim
-
     try:
         s = swim(parse_stroke(raw, "<tuned>"), seconds).summary()
     except FlapsimError:
@@ -170,7 +168,7 @@ def dump_toml(raw: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv: list[str] | None = None) -> int:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("stroke", choices=sorted(SPECS))
     ap.add_argument("--generations", type=int, default=25)
@@ -194,6 +192,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", required=True)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = parser()
     a = ap.parse_args(argv)
     raw = tomllib.loads(stroke_path(a.start or a.stroke).read_text())
     spec, objective = SPECS[a.stroke]

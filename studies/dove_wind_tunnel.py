@@ -2,7 +2,7 @@
 lift-to-drag ratio of the reference wingbeat (+17 deg tail bias) in a headwind, per
 coefficient table; and each table's static L/D at 10, 20, 30 deg.
 
-    PYTHONPATH=. python scripts/dove_wind_tunnel.py [--json out.json]
+    python studies/dove_wind_tunnel.py [--json out.json]
 
 Measure weight support here before free flight (REFERENCE_DATA). Thrust > 0 means the
 flapping wings out-pull their own drag and the body's (the trunk carries bluff-body drag
@@ -24,6 +24,7 @@ from flapsim.bird.body.model import Dove, build_xml
 from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.dove_flight import BODY_TABLE, DoveFlight, FlightConfig, wind_tunnel
 from flapsim.bird.flight.wingbeat import control_table, p0, reference_wingbeat, with_tail_bias
+from flapsim.core.io import write_json
 from flapsim.core.loading import load_model
 from flapsim.fluid.coefficients import get_table
 
@@ -59,13 +60,18 @@ def cycle_lift_to_drag(params: DoveParams, p: np.ndarray, speed: float, pitch_de
         fl.close()
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--speeds", default="6,7,8")
     ap.add_argument("--pitches", default="0,5,10")
     ap.add_argument("--tables", default=",".join(TABLES))
     ap.add_argument("--json", default=None)
-    args = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    args = ap.parse_args(argv)
     params = DoveParams.load()
     p = with_tail_bias(p0(), 17.0)
     rows = []
@@ -89,8 +95,6 @@ def main() -> None:
                              f"{r.thrust_per_weight:+.2f} L/D {ld:4.2f}")
             print(f"  pitch {pitch:4.1f} deg: " + " | ".join(cells))
     if args.json:
-        from flapsim.core.io import write_json
-
         write_json(args.json, {"wingbeat": "P0 + 17 deg tail bias", "runs": rows})
 
 

@@ -1,10 +1,11 @@
 """How much each feather mode carries in flight, and what dropping modes changes.
 
+    python studies/dove_feather_participation.py [--wingbeats 10] [--json out.json]
+
 Flies the base controller (10 wingbeats, as the dove acceptance) with 4, 2 and 1 modes per
 feather; reports each mode's share of the shaft-tip deflection and tip twist (RMS over the
 flight, all feathers pooled, 4-mode run), and for each mode count: lift/weight, the
 primaries' RMS tip deflection and twist, and the cost per step (bare ``mj_step``).
-Usage: ``python scripts/dove_feather_participation.py [--wingbeats 10] [--json out.json]``.
 The modes ride MuJoCo joints here (``ModalParams(integration="joints")``: their coordinates
 are in the recorded ``qpos``); the engine's integration gives the same shares (its tip
 deflections follow the joints', ``tests/bird/test_modal_feathers.py``).
@@ -47,11 +48,16 @@ def bare_us(m: mujoco.MjModel, n: int = 3000) -> float:
     return 1e6 * (time.perf_counter() - t) / n
 
 
-def main() -> dict:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--wingbeats", type=int, default=10)
     ap.add_argument("--json", default=None)
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = parser()
+    a = ap.parse_args(argv)
     out: dict = {"runs": {}}
     rigid = Dove.load()
     out["rigid_bare_us"] = bare_us(rigid.model)

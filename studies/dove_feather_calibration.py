@@ -1,8 +1,9 @@
-"""Feather calibration scene (the flight paper, sec. 7 and Fig. 3/12): the modal dove's trunk
-fixed in a headwind, the wings on the reference wingbeat; tip deflection and twist of a
-primary, a secondary and a rectrix over one wingbeat.
+"""How the modal feathers bend and twist over a wingbeat (the flight paper, sec. 7 and Fig.
+3/12): the modal dove's trunk fixed in a headwind, the wings on the reference wingbeat; tip
+deflection and twist of a primary, a secondary and a rectrix over one wingbeat.
 
-    PYTHONPATH=. python scripts/dove_feather_calibration.py --out calib [--speed 7]
+    python studies/dove_feather_calibration.py --out calib [--speed 7] [--pitch-deg 5]
+        [--integration engine|joints] [--no-tunnel]
 
 Writes ``calib/feathers.png`` (deflection and twist against the wingbeat phase, downstroke
 shaded) and ``calib/feathers.json`` (per feather: mean and extreme tip deflection and twist in
@@ -50,7 +51,7 @@ def plot(rec: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="dove_feather_calibration", help="output folder")
     ap.add_argument("--speed", type=float, default=7.0, help="headwind, m/s")
@@ -58,7 +59,12 @@ def main() -> None:
     ap.add_argument("--no-tunnel", action="store_true", help="skip the rigid/modal lift/weight")
     ap.add_argument("--integration", choices=("engine", "joints"), default="engine",
                     help="who integrates the modes (ModalParams.integration)")
-    args = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rec = record(args.speed, args.pitch_deg, integration=args.integration)

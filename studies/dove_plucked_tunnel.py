@@ -2,7 +2,7 @@
 lift/weight, thrust-drag/weight and the roll and yaw moments about the trunk of the reference
 wingbeat, then of left/right-asymmetric variants of it (what could hold the roll).
 
-    PYTHONPATH=. python scripts/dove_plucked_tunnel.py [--plucked 2,5,8] [--json out.json]
+    python studies/dove_plucked_tunnel.py [--plucked 2,5,8] [--json out.json]
 
 Primaries are counted from the outermost, as the paper's Fig. 15 (the ``plucked-3`` scenario:
 2, 5, 8). Roll moment > 0 lifts the left wing (x forward, z up); :func:`flapsim.bird.flight.dove_flight.
@@ -19,16 +19,22 @@ import numpy as np
 from flapsim.bird.body.params import DOF_NAMES, DoveParams
 from flapsim.bird.flight.dove_flight import FlightConfig, wind_tunnel
 from flapsim.bird.flight.wingbeat import p0, with_tail_bias
+from flapsim.core.io import write_json
 from flapsim.scenarios.flight import primary_name
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--plucked", default="2,5,8", help="left primaries, from the outermost")
     ap.add_argument("--speed", type=float, default=7.0)
     ap.add_argument("--pitch", type=float, default=5.0)
     ap.add_argument("--json", default=None)
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     params = DoveParams.load()
     plucked = tuple(primary_name("l", int(i)) for i in a.plucked.split(","))
     P0 = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
@@ -51,8 +57,6 @@ def main() -> None:
         print(f"  {what:<46} L/W {r.lift_per_weight:.3f}  T/W {r.thrust_per_weight:+.3f}  roll "
               f"{r.roll_moment * 1e3:+7.1f} mN m  yaw {r.yaw_moment * 1e3:+6.1f} mN m")
     if a.json:
-        from flapsim.core.io import write_json
-
         write_json(a.json, {"plucked": list(plucked), "speed": a.speed, "pitch_deg": a.pitch,
                             "runs": rows})
 

@@ -3,7 +3,7 @@ bundled command, ``--seed N``; kept in ``--cache``, resumable) and fly the whole
 with each, printing a table per seed (docs/flight_log.md, "How much the database's
 random draw matters").
 
-    PYTHONPATH=. python scripts/dove_seed_study.py --seeds 1-8 [--cache seed_dbs] [--json out.json]
+    python studies/dove_database_seeds.py --seeds 1-8 [--cache seed_dbs] [--json out.json]
         [--eval-args "--k 100 --bank-lead 0"] [--quick] [--feathers modal]
 
 Each database takes ~3.3 min to train and the suite ~2.5 min to fly on the 2 cores.
@@ -53,7 +53,7 @@ def _row(seed: int, result: dict) -> tuple[str, int]:
     return "| " + " | ".join(cells) + " |", done
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1-8")
     ap.add_argument("--samples", type=int, default=10000)
@@ -63,7 +63,12 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                     help="the dove the databases are trained on and flown with")
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     cache = Path(a.cache)
     cache.mkdir(exist_ok=True)
     flight = _flight_scenarios()

@@ -1,11 +1,12 @@
-"""Measure the figure of eight layer by layer (the issue's Fig. 15 ordering) with
-continuous-layer settings of your choice.
+"""How well the swimmer follows the figure of eight, layer by layer (the layered-swimming
+paper's Fig. 15 ordering), with continuous-layer settings of your choice.
 
-    python scripts/swim_figure8_layers.py --stroke crawl --radius 5 --layers cycle,all \
+    python studies/swim_figure8_layers.py --stroke crawl --radius 5 --layers cycle,all
         --set curvature_slowdown=0 --set turn_slowdown=1.5
 
 Prints, per run, the mean / max distance from the path [m], the fraction completed,
 the distance swum and the time to complete (as ``flapsim eval`` reports them).
+``--set FIELD=VALUE`` sets a field of :class:`flapsim.swim.continuous.HandRuleParams`.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ import dataclasses
 import json
 
 from flapsim.scenarios import get
-from flapsim.scenarios.swim import _metrics
 from flapsim.swim.continuous import HandRuleParams
 from flapsim.swim.goals import figure_eight
 from flapsim.swim.per_cycle import load_table
@@ -37,7 +37,7 @@ def figure8_setup(a: argparse.Namespace) -> tuple:
     return sc, radius, seconds, dataclasses.replace(HandRuleParams(), **kw)
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--stroke", default="crawl")
     ap.add_argument("--radius", type=float, default=None, help="loop radius [m] (default: the scenario's)")
@@ -46,7 +46,12 @@ def main() -> None:
     ap.add_argument("--table", default=None, help="per-cycle calibration table (default: the stroke's)")
     ap.add_argument("--rules", default=None, help="continuous rules, comma-separated (default both)")
     ap.add_argument("--json", action="store_true")
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     sc, radius, seconds, hp = figure8_setup(a)
     for layers in a.layers.split(","):
         table = None
@@ -54,11 +59,11 @@ def main() -> None:
             table = load_table(load_stroke(a.stroke), a.table, layers="all" if layers == "all" else "cycle")
         r = swim(a.stroke, seconds, target=figure_eight(radius), layers=layers, hand_params=hp,
                  cycle_table=table, rules=None if a.rules is None else tuple(a.rules.split(",")))
-        m = _metrics(r)
+        s = r.summary()  # the figure of eight is a path: its metrics are the distance from it
         row = {"stroke": a.stroke, "radius_m": radius, "layers": layers, "set": a.set, "rules": a.rules,
-               "mean_m": m["distance_to_target_mean_m"], "max_m": m["distance_to_target_max_m"],
-               "done": m["path_completed_fraction"], "swum_m": m["distance_swum_m"],
-               "time_s": m["time_to_reach_s"]}
+               "mean_m": s["path_error_mean_m"], "max_m": s["path_error_max_m"],
+               "done": s["path_completed_fraction"], "swum_m": s["distance_swum_m"],
+               "time_s": s["path_completed_s"]}
         if a.json:
             print(json.dumps(row))
         else:

@@ -7,7 +7,7 @@ speed, its turn radius (with that wingbeat's joint-range excess and its untrimme
 moment: moment balance is not asked) and the steepest climb, and how many wingbeats stayed
 within their ranges.
 
-    PYTHONPATH=. python scripts/dove_turn_limit.py [--workers 2] [--json limits.json]
+    python studies/dove_turn_limit.py [--workers 2] [--json limits.json]
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ def _one_speed(job):
     return search(cands, [v], pitches)
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--speeds", default="5,6,7,8", help="m/s")
     ap.add_argument("--pitches", default="0,5,10,15,20", help="trunk pitch in the tunnel, deg")
@@ -44,7 +44,12 @@ def main() -> None:
                          "(0: constant speed; the reference cruise runs at -0.025..-0.05)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None)
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     cands = [Candidate(f, w, t) for f in _floats(a.flap) for w in _floats(a.timewarp)
              for t in _floats(a.twist)]
     speeds, pitches = _floats(a.speeds), _floats(a.pitches)

@@ -2,7 +2,7 @@
 climbs of growing angle, each flown once with the bundled database (or --db), judged as
 ``flapsim eval`` judges (lost = farther than 3 m from the path).
 
-    PYTHONPATH=. python scripts/dove_flight_envelope.py [--db DB] [--feathers modal] [--speed V]
+    python studies/dove_flight_envelope.py [--db DB] [--feathers modal] [--speed V]
         [--aoa-per-g DEG] [--turn-g N [--turn-speed-floor V]] [--both-ways] [--json out.json]
 
 ``--both-ways`` flies each circle turning left and its mirror image turning right: near the
@@ -28,7 +28,7 @@ def climb(angle_deg: float, length_m: float = 80.0) -> FlightPath:
                                 [length_m * np.cos(a), 0.0, START_HEIGHT + length_m * np.sin(a)]]))
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--db", default=None)
     ap.add_argument("--radii", default="8,10,12,15,20")
@@ -46,7 +46,12 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                     help="the dove (and, without --db, its bundled database)")
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     rows = []
     cases = [("circle", float(r)) for r in a.radii.split(",")]
     if a.both_ways:

@@ -1,7 +1,7 @@
 """Where the dove's muscle power goes in free flight: :func:`flapsim.bird.flight.power.power_budget`
 printed (the reference wingbeat repeated from the cruise start; any coefficient table).
 
-    PYTHONPATH=. python scripts/dove_power_budget.py [--wingbeats 6] [--skip 2]
+    python studies/dove_power_budget.py [--wingbeats 6] [--skip 2]
         [--table NAME] [--tail-bias-deg D] [--twist-bias-deg D] [--speed M_S]
         [--json out.json]
 """
@@ -14,7 +14,7 @@ from flapsim.bird.flight.power import power_budget
 from flapsim.core.io import write_json
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--wingbeats", type=int, default=6)
     ap.add_argument("--skip", type=int, default=2, help="wingbeats flown before averaging")
@@ -24,7 +24,12 @@ def main() -> None:
                     help="both shoulder twists added to P0, deg (+ pronates)")
     ap.add_argument("--speed", type=float, default=None, help="start speed, m/s (default 7)")
     ap.add_argument("--json")
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     r = power_budget(a.wingbeats, a.skip, a.table, a.tail_bias_deg, a.twist_bias_deg,
                      speed=a.speed)
     print(f"over {r['seconds']:.3f} s of free flight (mass {r['mass_kg']:.3f} kg):")

@@ -9,7 +9,7 @@ session 15 had followed it; see :mod:`flapsim.core.environment`). A completion r
 perturbed starts says what one verdict cannot: whether the scenario is within reach, at its
 edge, or beyond it.
 
-    PYTHONPATH=. python scripts/dove_verdict_spread.py NAME[,NAME...]|user [--n 10]
+    python studies/dove_verdict_spread.py NAME[,NAME...]|user [--n 10]
         [--jitter 0.001] [--workers 2] [--refine-goal full|reachable] [--set NAME=VALUE ...]
         [--patch FILE.py ...] [--json out.json]
 
@@ -79,7 +79,7 @@ def _value(text: str) -> int | float | str:
     return text
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenario")
     ap.add_argument("--n", type=int, default=10, help="perturbed starts (default 10)")
@@ -95,7 +95,12 @@ def main() -> None:
                     help="run this Python file in every worker before it flies (an experiment's "
                          "change to the package); repeatable")
     ap.add_argument("--json")
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     options: dict = {"refine_goal": a.refine_goal}
     for item in a.set:
         key, _, value = item.partition("=")

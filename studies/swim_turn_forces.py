@@ -1,8 +1,8 @@
 """Where in the stroke cycle the water's forces on the arms help or oppose a turn, layer
 by layer (why the hand rules cost the breaststroke its turning).
 
-    python scripts/swim_turn_forces.py --stroke breaststroke --layers cycle,all
-    python scripts/swim_turn_forces.py --stroke breaststroke --layers cycle,all --steady 30
+    python studies/swim_turn_forces.py --stroke breaststroke --layers cycle,all
+    python studies/swim_turn_forces.py --stroke breaststroke --layers cycle,all --steady 30
 
 Swims the figure of eight and, at every control step (50 Hz) of the cycles in which the
 per-cycle layer turns hard (yaw weight >= --min-weight), records the water's yaw moment
@@ -18,16 +18,29 @@ swimmer's velocity (2 m look-ahead); prints the mean turn rate, speed and yaw we
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 
 import numpy as np
-from swim_figure8_layers import figure8_setup  # scripts/ is on sys.path when run as a script
 
+from flapsim.scenarios import get
 from flapsim.swim.continuous import HandRuleParams
 from flapsim.swim.goals import figure_eight
 from flapsim.swim.simulate import swim
 
 ARMS = ("upper_arm_l", "forearm_l", "hand_l", "upper_arm_r", "forearm_r", "hand_r")
+
+
+def figure8_setup(a: argparse.Namespace) -> tuple[float, float, HandRuleParams]:
+    """(loop radius m, seconds, HandRuleParams) from ``--stroke``, ``--radius`` and ``--set
+    field=value``: the stroke's figure-of-eight scenario, lasting longer in proportion to a
+    larger radius (as ``studies/swim_figure8_layers.py`` flies it)."""
+    sc = get(f"swim-figure8-{a.stroke}")
+    r0 = float(sc.params["radius_m"])
+    radius = r0 if a.radius is None else a.radius
+    seconds = float(sc.params["seconds"]) * max(1.0, radius / r0)
+    kw = {k: float(v) for k, _, v in (item.partition("=") for item in a.set)}
+    return radius, seconds, dataclasses.replace(HandRuleParams(), **kw)
 
 
 def measure(stroke: str, layers: str, radius: float, seconds: float, hp: HandRuleParams,
@@ -106,7 +119,7 @@ def steady(stroke: str, layers: str, deg: float, hp: HandRuleParams, rules: tupl
             "weight": w}
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--stroke", default="breaststroke")
     ap.add_argument("--radius", type=float, default=None)
@@ -116,8 +129,13 @@ def main() -> None:
     ap.add_argument("--min-weight", type=float, default=0.5)
     ap.add_argument("--bins", type=int, default=10)
     ap.add_argument("--steady", type=float, default=None, help="a steady turn, target this many deg left")
-    a = ap.parse_args()
-    sc, radius, seconds, hp = figure8_setup(a)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
+    radius, seconds, hp = figure8_setup(a)
     rules = None if a.rules is None else tuple(x for x in a.rules.split(",") if x)
     for layers in a.layers.split(","):
         if a.steady is not None:

@@ -11,7 +11,7 @@ Measured people (towed, streamlined): Narita, Nakashima & Takagi 2017 (J Biomech
 54:123) Dp = 23.5 v^2 N for 0.9-1.5 m/s; Haskins et al. 2024 (EJCM) tow tests 20 N at
 1 m/s to 100 N at 2 m/s.
 
-    python scripts/swim_passive_drag.py [--json out.json]
+    python studies/swim_passive_drag.py [--json out.json]
 """
 
 from __future__ import annotations
@@ -53,9 +53,14 @@ def tow(depth: float | None) -> list[float]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", help="write the numbers here")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = parser()
     a = ap.parse_args(argv)
     surface, submerged = tow(None), tow(1.0)
     rows = []

@@ -3,7 +3,7 @@ changes of the reference wingbeat P0 (tail bias 17 deg), each parameter within `
 standard deviations of the capture cycles' spread about P0 (the phase-1 sampler's sigma is 3:
 every candidate is a wingbeat it could draw).
 
-    PYTHONPATH=. python scripts/dove_wingbeat_search.py --objective cruise|climb|steady-climb|steer
+    python studies/dove_wingbeat_search.py --objective cruise|climb|steady-climb|steer
         [--bound 3] [--speed 7] [--workers 2] [--maxiter 60] [--popsize 10] [--seed 0]
         [--json out.json]
 
@@ -45,12 +45,17 @@ import argparse
 import time
 
 import numpy as np
+from scipy.optimize import differential_evolution
 
 from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import MIRROR_PERM
+from flapsim.bird.flight.capture import reference_capture
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
 from flapsim.bird.flight.power import wingbeat_balance
-from flapsim.bird.flight.wingbeat import N_PARAMS, p0, with_tail_bias
+from flapsim.bird.flight.wingbeat import N_PARAMS, p0, reference_wingbeat, with_tail_bias
+from flapsim.bird.training.sampling import capture_wingbeats
+from flapsim.core.environment import versions
+from flapsim.core.io import write_json
 
 #: The searched parameters: (scale, translation) of the left wing's six DOF and the tail's
 #: two, and the timewarp.
@@ -60,10 +65,6 @@ FREE = np.array([i for j in (*range(6), 12, 13) for i in (2 * j, 2 * j + 1)] + [
 def capture_spread() -> np.ndarray:
     """Each parameter's standard deviation over the capture cycles (fitted against the
     reference), the unit of the search's bounds."""
-    from flapsim.bird.flight.capture import reference_capture
-    from flapsim.bird.flight.wingbeat import reference_wingbeat
-    from flapsim.bird.training.sampling import capture_wingbeats
-
     return capture_wingbeats(reference_capture(), reference_wingbeat()).dP.std(0)
 
 
@@ -121,12 +122,7 @@ def _evaluate(x: np.ndarray, objective: str, wingbeats: int, skip: int,
                  {"min_speed": min_speed, "max_pitch": max_pitch})
 
 
-def main() -> None:
-    from scipy.optimize import differential_evolution
-
-    from flapsim.core.environment import versions
-    from flapsim.core.io import write_json
-
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb", "steer"), default="cruise")
     ap.add_argument("--bound", type=float, default=3.0, help="capture spreads each way (default 3)")
@@ -142,7 +138,12 @@ def main() -> None:
     ap.add_argument("--popsize", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default=None)
-    a = ap.parse_args()
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
+    a = ap.parse_args(argv)
     if not 1 <= a.skip < a.wingbeats:
         ap.error("need 1 <= --skip < --wingbeats")
     args = (a.objective, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch)
