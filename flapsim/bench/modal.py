@@ -18,6 +18,11 @@ import time
 import mujoco
 import numpy as np
 
+from flapsim.core.loading import load_model
+from flapsim.modal.analysis import analyze, fix_body_orientation
+from flapsim.modal.creatures import CREATURES, analyze_creature, load_creature
+from flapsim.modal.dynamic import ModalController, two_mode_drives
+
 MODAL_TARGET_S = 0.2
 
 
@@ -74,8 +79,6 @@ def _time_repeated(fn, budget_s: float, min_reps: int = 3) -> tuple[float, int]:
 
 
 def run_modal(args: argparse.Namespace) -> dict:
-    from flapsim.core.loading import load_model
-    from flapsim.modal.analysis import analyze, fix_body_orientation
 
     budget = args.seconds if args.seconds else 2.0
     model = load_model(tree_xml(), is_xml=True)
@@ -114,8 +117,6 @@ def run_modal(args: argparse.Namespace) -> dict:
 
 
 def run_creatures(args: argparse.Namespace) -> dict:
-    from flapsim.modal.creatures import CREATURES, analyze_creature, load_creature
-    from flapsim.modal.dynamic import ModalController, two_mode_drives
 
     budget = args.seconds if args.seconds else 2.0
     out: dict = {"benchmark": "creatures", "creatures": {}}

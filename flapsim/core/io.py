@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import tempfile
@@ -12,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from flapsim.core import interrupts
 from flapsim.core.errors import InputError
 
 
@@ -26,7 +28,6 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     parent = target.parent if str(target.parent) else Path(".")
     if not parent.exists():
         raise InputError(f"cannot write {target}: folder {parent} does not exist (create it first)")
-    from flapsim.core import interrupts
     tmp_path: Path | None = None
     try:
         # a signal between mkstemp and this try left the temporary file behind (seen at
@@ -59,7 +60,6 @@ def atomic_video(path: str | os.PathLike, **writer_kwargs: Any) -> Iterator[Any]
     (4 of 30 SIGTERMs under load left a one-frame ``.x.mp4.*``)."""
     import imageio.v2 as imageio
 
-    from flapsim.core import interrupts
     with atomic_path(path) as tmp:
         writer = imageio.get_writer(str(tmp), **writer_kwargs)
         try:
@@ -105,7 +105,6 @@ def save_npz(path: str | os.PathLike, **arrays: Any) -> None:
 
 def file_sha256(path: str | Path) -> str:
     """Content hash of a file (provenance of databases built from other databases)."""
-    import hashlib
 
     h = hashlib.sha256()
     with open(path, "rb") as fh:

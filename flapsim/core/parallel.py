@@ -55,6 +55,14 @@ class WorkerError(FlapsimError):
     """A worker process died or could not be reached."""
 
 
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask where the system has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        return os.cpu_count() or 1
+
+
 # ------------------------------------------------------------------ in the worker process
 
 _WORKER: Any = None

@@ -37,8 +37,11 @@ needs to render.
 from __future__ import annotations
 
 import argparse
+import ctypes.util
+import importlib.util
 import math
 import os
+import platform
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -314,7 +317,6 @@ def gl_problem(value: str | None = None,
     """Why ``MUJOCO_GL`` (or ``value``) cannot render, or None: an unknown value, or the
     library of the backend it names is not installed (checked without importing mujoco,
     whose import fails on such a value)."""
-    import ctypes.util
 
     find = find_library or ctypes.util.find_library
     v = (os.environ.get("MUJOCO_GL", "") if value is None else value).lower().strip()
@@ -323,8 +325,6 @@ def gl_problem(value: str | None = None,
     if v not in _GL_VALID:
         return (f"MUJOCO_GL={v!r} is not a MuJoCo GL backend; use egl (offscreen), osmesa "
                 "(software) or glfw (a display)")
-    import importlib.util
-    import platform
 
     lib = {"egl": "EGL", "osmesa": "OSMesa", "glx": "GL"}.get(v)
     if lib and not find(lib):

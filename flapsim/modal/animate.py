@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
 from flapsim.core.errors import InputError
 from flapsim.core.io import save_npz
@@ -260,7 +261,6 @@ def animate(
     qpos = apply_soft_limits(model, qpos, limits)
     residual = 0.0
     if projector is not None and projector.active:
-        from tqdm import tqdm
 
         # a few Gauss-Newton steps per frame: show progress on long animations
         for k in tqdm(range(times.size), desc="projecting onto the constraints", unit="frame",

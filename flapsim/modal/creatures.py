@@ -42,6 +42,7 @@ from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
 from flapsim.core.assets import asset_path
 from flapsim.core.errors import InputError, SimulationError
@@ -164,7 +165,6 @@ def run_creature(
     frames: list[np.ndarray] = []
     bar = None
     if progress:
-        from tqdm import tqdm
 
         bar = tqdm(total=n_steps, desc=f"{name} creature", unit="step", leave=False)
     t0 = time.perf_counter()

@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 
 from flapsim.core.errors import InputError, ModelError
-from flapsim.modal.analysis import ModalAnalysis, _actuator_moment
+from flapsim.modal.analysis import ModalAnalysis, _actuator_moment, integrate_displacement
 
 log = logging.getLogger(__name__)
 
@@ -171,7 +171,6 @@ class ModalController:
 
     def target_qpos(self, time: float) -> np.ndarray:
         """The PD equilibrium point theta_d(t) as a pose (nq,)."""
-        from flapsim.modal.analysis import integrate_displacement
 
         dq, _ = self.target_displacement(time)
         return integrate_displacement(self.model, self.analysis.rest_qpos, dq)

@@ -38,7 +38,13 @@ import numpy as np
 from flapsim.core.assets import asset_path
 from flapsim.core.errors import InputError
 from flapsim.core.loading import load_model
-from flapsim.modal.analysis import ExtraConstraint, ModalAnalysis, analyze, fix_body_orientation
+from flapsim.modal.analysis import (
+    ExtraConstraint,
+    ModalAnalysis,
+    analyze,
+    fix_body_orientation,
+    parse_constraint,
+)
 from flapsim.modal.animate import Component
 from flapsim.modal.heuristics import (
     CATEGORY_NAMES,
@@ -168,7 +174,6 @@ def resolve_model(spec: str) -> tuple[mujoco.MjModel, str]:
 
 
 def build_constraints(specs: tuple[str, ...]) -> list[ExtraConstraint]:
-    from flapsim.modal.analysis import parse_constraint
 
     out = []
     for s in specs:

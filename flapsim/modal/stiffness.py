@@ -17,6 +17,7 @@ scale was simulated and holds).
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from dataclasses import dataclass
@@ -98,7 +99,6 @@ def sag(
 
 
 def _copy(model: mujoco.MjModel) -> mujoco.MjModel:
-    import copy
 
     return copy.deepcopy(model)
 

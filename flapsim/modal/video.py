@@ -14,10 +14,13 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
 from flapsim.core.errors import InputError, ModelError
 from flapsim.core.io import atomic_video
+from flapsim.core.validate import require_gl
 from flapsim.modal.analysis import ModalAnalysis, integrate_displacement
+from flapsim.render.video import new_renderer
 
 log = logging.getLogger(__name__)
 
@@ -59,8 +62,6 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
     width = min(width, int(model.vis.global_.offwidth))
     height = min(height, int(model.vis.global_.offheight))
     try:
-        from flapsim.render.video import new_renderer
-
         return new_renderer(model, height, width)
     except Exception as exc:  # GL backends raise assorted types
         raise ModelError(
@@ -73,7 +74,6 @@ def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: flo
                  total: int | None = None, progress: bool = True) -> int:
     """Write RGB frames to an mp4 (ffmpeg from imageio-ffmpeg) or a looping gif, streaming
     (memory stays bounded), with a progress bar of ``total`` frames on stderr."""
-    from tqdm import tqdm
 
     p = check_video_path(path)
     if not (math.isfinite(fps) and 0 < fps <= 1000):
@@ -102,7 +102,6 @@ def render_poses(
     track: bool = False,
 ) -> int:
     """Render a sequence of poses (nq each) to a video; ``track`` follows the centre of mass."""
-    from flapsim.core.validate import require_gl
 
     if len(poses) == 0:
         raise InputError("no frames to render")

@@ -25,9 +25,11 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
 from flapsim.core.errors import InputError, SimulationError
 from flapsim.core.io import atomic_video
+from flapsim.core.validate import require_gl
 
 log = logging.getLogger(__name__)
 
@@ -88,9 +90,6 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
     if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
         raise InputError(f"video {width}x{height} exceeds the model's offscreen buffer "
                          f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}")
-    from tqdm import tqdm
-
-    from flapsim.core.validate import require_gl
 
     if not 0 < fps <= 1000 or not np.isfinite(fps):
         raise InputError(f"video frame rate must be > 0 and <= 1000 frames/s, got {fps}")

@@ -25,6 +25,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
+import mujoco.viewer
 import numpy as np
 
 from flapsim.core.errors import InputError
@@ -81,7 +82,6 @@ class AnimalViewer:
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, track_body: int | str,
                  distance: float = 1.5, launch=None) -> None:
-        import mujoco.viewer
 
         if isinstance(track_body, str):
             bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, track_body)

@@ -39,10 +39,13 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
+from flapsim import __version__
 from flapsim.core.errors import DataFileError, InputError
 from flapsim.core.io import write_json
-from flapsim.swim.continuous import calibration_settings
+from flapsim.core.parallel import ChunkExecutor, WorkerError
+from flapsim.swim.continuous import HandRules, calibration_settings
 from flapsim.swim.feedback import wrap_angle
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams, check_diverged
@@ -372,7 +375,6 @@ class CalibrationWorker:
         # a stroke with balance rules (treading water) swims with them: without them it
         # tips over within a few cycles and no turn could be measured
         self.fb = FeedbackLayer(layer) if self.stroke.perturbations else None
-        from flapsim.swim.continuous import HandRules
 
         self.hands = HandRules(layer)
         layer.extra_on = False
@@ -410,7 +412,6 @@ class CalibrationWorker:
         self.hands.t_last = None
 
     def header(self) -> dict:
-        from flapsim import __version__
 
         return {"flapsim_version": __version__, "config": asdict(self.config)}
 
@@ -518,7 +519,6 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
     """Pre-simulate ``stroke``'s per-cycle sequences and write its tables, one per layer
     mode (default: next to the stroke file). Re-running after an interruption resumes
     from the journal."""
-    from flapsim.core.parallel import ChunkExecutor
 
     st = load_stroke(stroke)
     if not st.cycle:
@@ -535,7 +535,6 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
                                tuple(float(w) for w in sorted(set(weights))), dict(params or {}))
     jobs = config.jobs()
     journal = out_p.with_name(out_p.name + ".partial.jsonl")
-    from flapsim import __version__
 
     ident = {"flapsim_version": __version__, "config": asdict(config)}
     done = _read_journal(journal, ident) if journal.is_file() else {}
@@ -549,7 +548,6 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
             j += 1
         chunks.append((todo[i], todo[j] + 1))
         i = j + 1
-    from tqdm import tqdm
 
     if not journal.is_file():
         journal.write_text(json.dumps({"header": ident}) + "\n")
@@ -566,7 +564,6 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
                     bar.update(len(res))
     missing = [i for i in range(len(jobs)) if i not in done]
     if missing:  # a table assembled without them would hold zeros for their cycles
-        from flapsim.core.parallel import WorkerError
 
         raise WorkerError(f"no result came back for {len(missing)} of {len(jobs)} calibration "
                           f"cycles; run the same command again to resume ({journal} keeps the rest)")

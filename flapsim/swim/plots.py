@@ -12,6 +12,7 @@ import numpy as np
 
 from flapsim.core.errors import InputError
 from flapsim.core.io import atomic_path
+from flapsim.swim.goals import Path, Point
 
 SIZE_IN = (8.0, 6.0)  # inches, at 100 dpi: 800 x 600 pixels
 DPI = 100
@@ -40,7 +41,6 @@ def track_plot(result, path: str, title: str | None = None) -> None:
     """Top view of ``result`` (a :class:`flapsim.swim.simulate.SwimResult`): the centre
     of mass's track, the start, and the path or (moving) target it steered for; for a
     target with a depth, a second panel shows depth against distance along x."""
-    from flapsim.swim.goals import Path, Point
 
     _check_png(path)
     t = result.target

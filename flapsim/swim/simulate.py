@@ -12,12 +12,16 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
 from flapsim.core.errors import InputError
 from flapsim.fluid.flow import FlowField
+from flapsim.render.video import new_renderer
+from flapsim.swim.continuous import RULES, HandRules
 from flapsim.swim.goals import Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams, check_diverged
+from flapsim.swim.per_cycle import CycleLayer, load_table
 from flapsim.swim.strokes import Stroke, load_stroke
 
 log = logging.getLogger(__name__)
@@ -309,8 +313,6 @@ def swim(
     layers; returning False ends the swim early (the viewer uses it; ``layer.stack``
     is the :class:`LayerStack`, whose mode it may switch).
     """
-    from flapsim.swim.continuous import RULES, HandRules
-    from flapsim.swim.per_cycle import CycleLayer, load_table
 
     if layers is None:
         layers = "all" if feedback else "basic"
@@ -362,7 +364,6 @@ def swim(
     frames: list[np.ndarray] = []
     frame_every = 0
     if video_fps > 0:
-        from flapsim.render.video import new_renderer
 
         renderer = new_renderer(m, *video_size)
         frame_every = max(1, int(round(1.0 / (video_fps * dt))))
@@ -371,7 +372,6 @@ def swim(
         cam.azimuth, cam.elevation, cam.distance = 120.0, -18.0, 3.2
     bar = None
     if progress:
-        from tqdm import tqdm
 
         bar = tqdm(total=nsteps, unit=" sim s", unit_scale=dt, desc=st.name, leave=False)
     t_wall = time.perf_counter()

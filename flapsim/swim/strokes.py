@@ -71,6 +71,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from flapsim.core.errors import DataFileError, InputError
+from flapsim.swim.feedback import SIGNALS
 from flapsim.swim.model import JointInfo
 
 STROKE_DIR = Path(__file__).resolve().parent / "data" / "strokes"
@@ -416,7 +417,6 @@ def _parse_keys(table: object, mirror: dict, path: str | Path, where: str,
 
 def _parse_perturbation(name: str, spec: object, mirror: dict, path: str | Path,
                         section: str = "perturb") -> Perturbation:
-    from flapsim.swim.feedback import SIGNALS
 
     where = f"{section}.{name}"
     if not isinstance(spec, dict):

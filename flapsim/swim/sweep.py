@@ -8,11 +8,14 @@ Processes, not threads: the passive force callback holds the GIL while it runs.
 from __future__ import annotations
 
 import os
+import signal
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
-from flapsim.core.errors import InputError
+from flapsim.core.errors import FlapsimError, InputError
 from flapsim.core.validate import RANGES
+from flapsim.swim.model import SwimmerParams
+from flapsim.swim.simulate import swim
 
 #: parameter -> (SwimmerParams field or swim() argument, unit, valid range); the ranges are
 #: the ones ``flapsim swim`` accepts (flapsim.core.validate.RANGES)
@@ -35,9 +38,6 @@ COLUMNS = (
 
 def _one(job: tuple) -> dict:
     stroke, name, value, seconds, target, feedback = job
-    from flapsim.core.errors import FlapsimError
-    from flapsim.swim.model import SwimmerParams
-    from flapsim.swim.simulate import swim
 
     field = PARAMETERS[name][0]
     kwargs: dict = {}
@@ -102,7 +102,6 @@ def sweep(stroke: str, name: str, values: Sequence[float], seconds: float = 20.0
 
 def _init_worker() -> None:
     """Workers leave Ctrl-C and SIGTERM to the parent, which stops them."""
-    import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)

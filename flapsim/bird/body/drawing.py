@@ -11,8 +11,10 @@ import numpy as np
 
 from flapsim.bird.body.feather_dynamics import ModalFeathers, _v, dove_feather_modes, warp
 from flapsim.bird.body.feather_modes import FeatherModes
+from flapsim.bird.body.model import build_xml
+from flapsim.bird.body.params import UNDERSIDE
 from flapsim.core.errors import InputError, ModelError
-from flapsim.fluid.coefficients import CoefficientTable
+from flapsim.fluid.coefficients import CoefficientTable, get_table
 
 
 class FeatherDrawing:
@@ -44,8 +46,6 @@ class FeatherDrawing:
     """
 
     def __init__(self, dove) -> None:
-        from flapsim.bird.body.model import build_xml
-        from flapsim.bird.body.params import UNDERSIDE
 
         if dove.modal is None:
             raise InputError("FeatherDrawing draws a modal dove (Dove.load(feathers='modal'))")
@@ -129,7 +129,6 @@ def _rest_vertices(fm: FeatherModes) -> np.ndarray:
 
 
 def _drawing_table() -> CoefficientTable:
-    from flapsim.fluid.coefficients import get_table
 
     return get_table("flat_plate")  # only the geometry (the warp) is used: any table
 

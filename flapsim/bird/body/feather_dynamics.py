@@ -51,9 +51,12 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+import scipy.linalg
 from numba import njit
 
 from flapsim.bird.body.feather_modes import FeatherModes, ModalParams, feather_modes
+from flapsim.bird.body.inertia import _Inertia
+from flapsim.bird.body.params import all_feathers
 from flapsim.core.callbacks import CompiledProvider, Registration, register, register_kernel, time_view
 from flapsim.core.errors import InputError, ModelError
 from flapsim.fluid.coefficients import CoefficientTable
@@ -65,10 +68,13 @@ from flapsim.fluid.hinges import (
     PolygonHinges,
     advance_clock,
     bone_accelerations,
+    hinge_arrays,
     hinge_frames,
     hinge_torque,
+    integrator_damping,
     memory_acceleration,
     shift_memory,
+    userdata_size,
 )
 from flapsim.fluid.surfaces import plate_force, pseudo_angle_tables
 
@@ -101,7 +107,6 @@ def mass_scaled(fm: FeatherModes) -> FeatherModes:
 def dove_feather_modes(p, mp: ModalParams) -> tuple[FeatherModes, ...]:
     """Mass-scaled modes (:func:`mass_scaled`) of every dove feather (left wing, left tail
     half, then the right side)."""
-    from flapsim.bird.body.params import all_feathers
 
     return tuple(mass_scaled(feather_modes(fe, _lead_fraction(p, fe.kind), _segments(p, fe.kind),
                                            mp)) for fe in all_feathers(p))
@@ -131,7 +136,6 @@ def modal_xml(xml: str, p, mp: ModalParams) -> str:
     linear and angular acceleration, centrifugal load, gravity, and the reaction of the
     feather's deformation back onto the bone. The primaries' twist hinges get
     :func:`twist_armature`; the model's constraint solver is PGS (see below)."""
-    from flapsim.bird.body.inertia import _Inertia
 
     root = ET.fromstring(xml)
     # the same constraint problem (joint limits) over 4x the DOF: Newton's Hessian factorization
@@ -760,7 +764,6 @@ def mode_transitions(fm: FeatherModes, mp: ModalParams, dt: float) -> np.ndarray
     ``(q', v') = (a q + b v + e Q, c q + d v + f Q)``, the exponential of
     ``mu q'' + c q' + k q = Q`` (stiffness, damping and ``mu`` of :func:`mode_joint_gains`:
     the unresolved modes keep their ``k dt`` of damping, so they stay quasi-static)."""
-    import scipy.linalg
 
     k, c = mode_joint_gains(fm, mp, dt)
     out = np.zeros((len(k), TRANS))
@@ -884,7 +887,6 @@ class ModalFeathers(CompiledProvider):
         none_i, none_f = np.zeros(0, dtype=np.int64), np.zeros(0)
         self._hint, self._hflt = none_i, none_f
         if self.engine:
-            from flapsim.fluid.hinges import integrator_damping, userdata_size
 
             if hinges is not None and len(hinges):
                 _, self._hint, self._hflt = hinges.tables(model, [], np.zeros(0, dtype=np.int64))
@@ -922,7 +924,6 @@ class ModalFeathers(CompiledProvider):
                     data.qfrc_passive, self._fint, self._ff, self._grid, self._vst, self._vx,
                     self._tri, self._scratch, self.ext, self._cl, self._cd, self.flow.params,
                     self._fluid, time_view(data), rec]
-        from flapsim.fluid.hinges import hinge_arrays
 
         nm = self.K * len(self.modes)
         return [data.xpos.reshape(-1), data.xmat.reshape(-1), data.cvel.reshape(-1),

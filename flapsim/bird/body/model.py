@@ -47,6 +47,8 @@ import mujoco
 import numpy as np
 
 from flapsim.bird.body import feather_geometry as fz
+from flapsim.bird.body.feather_dynamics import engine_userdata_size, modal_xml
+from flapsim.bird.body.feather_modes import ModalParams
 from flapsim.bird.body.inertia import _Inertia
 from flapsim.bird.body.params import (
     DOF_NAMES,
@@ -61,7 +63,8 @@ from flapsim.bird.body.params import (
 )
 from flapsim.core.assets import asset_path
 from flapsim.core.errors import ModelError
-from flapsim.fluid.hinges import userdata_size
+from flapsim.core.loading import load_model
+from flapsim.fluid.hinges import PolygonHinges, userdata_size
 
 # -- geometry --------------------------------------------------------------------------------
 
@@ -190,7 +193,6 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
         # engine-integrated modes' state (flapsim.bird.body.feather_dynamics)
         nud = userdata_size(2 * len(p.primary_angle_deg))
         if modal is not None:
-            from flapsim.bird.body.feather_dynamics import engine_userdata_size
 
             nud += engine_userdata_size(len(feathers), modal.modes)
         out[0] = out[0].replace('<size memory="4M"/>', f'<size memory="4M" nuserdata="{nud}"/>')
@@ -200,7 +202,6 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
     out.append(_sensors_xml())
     out.append("</mujoco>\n")
     if joints:
-        from flapsim.bird.body.feather_dynamics import modal_xml
 
         return modal_xml("".join(out), p, modal)
     return "".join(out)
@@ -511,11 +512,9 @@ class Dove:
         """The bundled dove (``feathers="rigid"``, from ``bird_mjcf/dove.xml``), or the same
         bird with modal feathers (``feathers="modal"``: generated from the parameters with
         ``modal`` or the default :class:`~flapsim.bird.body.feather_modes.ModalParams`)."""
-        from flapsim.core.loading import load_model
 
         params = params or DoveParams.load()
         if feathers == "modal":
-            from flapsim.bird.body.feather_modes import ModalParams
 
             if path is not None:
                 raise ModelError("modal feathers are generated from the parameters, not a file")
@@ -528,7 +527,6 @@ class Dove:
     @classmethod
     def from_params(cls, params: DoveParams, modal: object | None = None) -> Dove:
         """Compile straight from parameters (no file): for studies that vary the model."""
-        from flapsim.core.loading import load_model
 
         return cls.from_model(load_model(build_xml(params, modal=modal), is_xml=True), params, modal)
 
@@ -598,7 +596,6 @@ class Dove:
         """The primaries' twist hinges for the force engine
         (:class:`~flapsim.fluid.hinges.PolygonHinges`), or None when the model has them in the
         skeleton (``twist="tree"``: modal feathers, or a model generated so)."""
-        from flapsim.fluid.hinges import PolygonHinges
 
         m = self.model
         labels, joints, axes, origins, masses, coms, inertias = [], [], [], [], [], [], []
@@ -635,7 +632,6 @@ class Dove:
         if self.twist_hinges() is None:
             return self.model, np.arange(self.model.nq)
         if getattr(self, "_drawing", None) is None:
-            from flapsim.core.loading import load_model
 
             shown = load_model(build_xml(self.params, twist="tree"), is_xml=True)
             m = self.model

@@ -13,15 +13,20 @@ controller that uses them, a controlled flight and the loading of a database.
 from __future__ import annotations
 
 import logging
+import os
+import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
+import mujoco
 import numpy as np
+from tqdm import tqdm
 
+from flapsim.bird.control.config import LOOKAHEAD_MODES, MAX_REFINE, REFINE_GOALS, ControllerConfig
+from flapsim.bird.control.database import load_database, read_header
 from flapsim.bird.control.lookahead import ReferenceLookahead
 from flapsim.bird.control.prediction import PREDICT_MODES, CoarsePredictor, S0Predictor
 from flapsim.bird.control.regression import (
-    DEFAULT_CLIP_REQUEST,
-    DEFAULT_K_DENSE_SHARE,
     MIRROR_STATE,
     PAPER_WEIGHTS,
     Regressor,
@@ -34,6 +39,7 @@ from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, pose_quat
 from flapsim.bird.flight.wingbeat import N_PARAMS, ReferenceWingbeat, p0, project_to_ranges, with_tail_bias
 from flapsim.core.errors import InputError, SimulationError
+from flapsim.core.parallel import usable_cores
 from flapsim.fluid.coefficients import get_table
 
 log = logging.getLogger(__name__)
@@ -71,15 +77,6 @@ def refine_error(S: np.ndarray, S_target: np.ndarray, weights: np.ndarray) -> fl
     d = np.asarray(S, float) - np.asarray(S_target, float)
     return float(np.sqrt(d @ (w * d)))
 
-
-#: The most simulated corrections per wingbeat (:attr:`WingbeatController.refine`).
-MAX_REFINE = 5
-
-#: What :attr:`WingbeatController.refine` aims its corrections at and ranks the wingbeats it
-#: simulates by (:attr:`WingbeatController.refine_goal`): ``reachable``, the target with each
-#: component's change from P0's end clipped as the request is (the database's [q, 1 - q]
-#: quantiles, ``clip_request``), or ``full``, the target itself.
-REFINE_GOALS = ("reachable", "full")
 
 
 
@@ -328,13 +325,11 @@ def fly_controlled(controller, target, wingbeats: int, progress: bool = False,
                    record: bool = False) -> ControlledFlight:
     """Fly ``wingbeats`` wingbeats under ``controller`` toward ``target`` from the flight's
     current state."""
-    import time
 
     fl = controller.flight
     start = fl.data.qpos[0:3].copy()
     it = range(wingbeats)
     if progress:
-        from tqdm import tqdm
 
         it = tqdm(it, desc="wingbeats", unit="wb")
     steps = []
@@ -348,7 +343,6 @@ def start_cruise(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig | None = None
                  roll_deg: float = 0.0) -> None:
     """The standard cruise start (:meth:`DoveFlight.reset`), rolled by ``roll_deg`` (in
     :func:`~flapsim.bird.flight.dove_flight.pitch_roll`'s convention) about the trunk's forward axis."""
-    import mujoco
 
     cfg = cfg or FlightConfig()
     fl.reset(cfg, P0)
@@ -401,7 +395,6 @@ def bundled_database_path(feathers: str = "rigid"):
     """The bundled controller database of the rigid (default) or the modal-feather dove
     (``Dove.load(feathers="modal")`` with the default :class:`~flapsim.bird.body.feather_modes.
     ModalParams`)."""
-    from pathlib import Path
 
     names = {"rigid": BUNDLED_DB, "modal": BUNDLED_MODAL_DB}
     if feathers not in names:
@@ -414,46 +407,9 @@ def database_table(db_path=None, feathers: str = "rigid") -> str:
     ``feathers`` dove) was sampled with: its sampling configuration's, or the default table
     where it names none (a merged database, say). A learned controller flies with that table
     only."""
-    from flapsim.bird.control.database import read_header
 
     cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
     return str(cfg.get("table") or FlightConfig.table)
-
-
-#: The learned controller's default :attr:`WingbeatController.carry`, per dove (docs/flight_log.md,
-#: "Carrying the last wingbeat"): measured over five databases each; with modal feathers
-#: 0.4 follows the figure of eight closer but survives fewer pushes, so they keep 0.
-DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
-
-#: Simulated corrections per wingbeat (:attr:`WingbeatController.refine`) by dove (docs/flight_log.md,
-#: "Wingbeats checked by simulation"; ``scripts/dove_refine_study.py``): 2 for rigid feathers,
-#: measured over five databases at 7 m/s (level circles of 3-8 m both ways followed 31 of 50
-#: times against 8; 6 and 8 N pushes from four sides survived 40 of 40 against 36; the suite
-#: 17 of 22 against 15 on the bundled database) at half the real-time factor; 0 for modal
-#: ones (their bundled database: the same verdicts on 5-8 m circles both ways and 8 N pushes
-#: from the left and below, the figure of eight's Ef 0.231 against 0.240 m, at 0.64x the
-#: speed).
-DEFAULT_REFINE = {"rigid": 2, "modal": 0}
-
-#: :attr:`WingbeatController.refine_goal` by dove. ``reachable`` was measured on the rigid dove
-#: and not made its default (docs/flight_log.md, "Corrections aimed at what a wingbeat can reach": 17 of
-#: the 22 scenarios as ``full``, but 8 N rather than 10 N pushes from all six directions, and
-#: 76 of 100 user-path starts against 83).
-DEFAULT_REFINE_GOAL = {"rigid": "full", "modal": "full"}
-
-
-#: :func:`load_controller`'s ``lookahead`` (and the CLI's ``--lookahead``).
-LOOKAHEAD_MODES = ("auto", "on", "off")
-
-
-def usable_cores() -> int:
-    """CPU cores this process may run on."""
-    import os
-
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # not on Linux
-        return os.cpu_count() or 1
 
 
 def make_lookahead(flight: DoveFlight, mode: str, refine: int, predict: str
@@ -543,7 +499,6 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     if predict == "coarse" and flight.modal is not None and not flight.modal.engine:
         raise InputError("--predict coarse needs rigid feathers or modal ones integrated by the "
                          "engine (ModalParams(integration='engine'), the default)")
-    from flapsim.bird.control.database import load_database
 
     path = db_path or bundled_database_path(flight.dove.feathers)
     db = load_database(path, model_hash=flight.dove.hash(), require_finalized=True)
@@ -601,7 +556,6 @@ def _predictor(db, path, every: int) -> S0Predictor:
 def attach_predictor(ctl: WingbeatController, db_path=None, every: int = 4) -> WingbeatController:
     """Switch ``ctl`` (made by :func:`load_controller` over ``db_path``) to
     ``predict="regression"`` (and to carry 0: the prediction is of P0's end)."""
-    from flapsim.bird.control.database import load_database
 
     ctl.carry = 0.0  # the regression predicts P0's end only: nothing is carried
     ctl.reset()

@@ -57,6 +57,7 @@ import numpy as np
 
 from flapsim import __version__
 from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.io import _jsonable, atomic_path, file_sha256
 
 log = logging.getLogger(__name__)
 
@@ -124,7 +125,6 @@ class Database:
 def canonical_json(obj: Any) -> bytes:
     """The one byte form of a JSON document used in database files (sorted keys,
     no spaces, ASCII; numpy values converted, NaN -> null)."""
-    from flapsim.core.io import _jsonable
 
     return json.dumps(_jsonable(obj), sort_keys=True, separators=(",", ":"), ensure_ascii=True,
                       allow_nan=False).encode("ascii")
@@ -403,7 +403,6 @@ def _signals_deferred() -> Iterator[None]:
 
 
 def _write_atomic(path: Path, blobs: list[bytes]) -> None:
-    from flapsim.core.io import atomic_path
 
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
@@ -624,7 +623,6 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
     common model hash and provenance entries ``same`` and, under ``provenance.parts``, every
     source's path, sha256, sample count and whole header. Sources of another model, with
     other ``same`` entries, other fields, or unfinished, are one-line errors."""
-    from flapsim.core.io import file_sha256
 
     if len(paths) < 2:
         raise InputError(f"a merge needs at least two databases, got {len(paths)}")

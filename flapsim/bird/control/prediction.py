@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Protocol
 
+import mujoco
 import numpy as np
 
 from flapsim.bird.control.regression import Regressor
@@ -94,7 +95,6 @@ class S0Predictor:
 
     def reference(self, ctl: FlyingController, snap: cycle.Snapshot) -> cycle.CycleEnd:
         """P0's end from ``snap``: simulated (and the bias updated) or predicted."""
-        import mujoco
 
         fl = ctl.flight
         if self._last_end is None or not np.array_equal(snap.physics, self._last_end):

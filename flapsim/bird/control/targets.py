@@ -11,10 +11,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import mujoco
 import numpy as np
 
 from flapsim.bird.flight import cycle
-from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, pitch_roll
 
 #: m/s^2
 GRAVITY = 9.81
@@ -85,7 +86,6 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
     cos(bank) of the weight; quasi-steady lift grows with the angle of attack (the reference
     wingbeat at 7 m/s: 1.01 of the weight at 5 deg, 1.41 at 15 deg, ~25 deg per g).
     """
-    import mujoco
 
     bank = float(np.arctan2(speed * turn_rate, GRAVITY))
     # wind axes first (heading, climb, then the bank about the flight path), then the body's
@@ -97,13 +97,11 @@ def target_state(trim: Trim, speed: float, heading: float, climb: float, turn_ra
     aoa = trim.aoa + aoa_per_g * (1.0 / max(float(np.cos(bank)), 0.2) - 1.0)
     R = (rot_z(heading) @ rot_y(-climb) @ rot_x(-bank)
          @ rot_y(-aoa))
-    del mujoco
     v = speed * np.array([np.cos(climb) * np.cos(heading), np.cos(climb) * np.sin(heading),
                           np.sin(climb)])
     if wind is not None:
         v = v + np.asarray(wind, float)
     w_body = trim.S[5:8] + R.T @ np.array([0.0, 0.0, turn_rate])
-    from flapsim.bird.flight.dove_flight import pitch_roll
 
     p, r = pitch_roll(R)
     if S_now is not None and settle_s <= 0:
@@ -134,9 +132,6 @@ def rot_z(a: float) -> np.ndarray:
 
 def _roll_rate_sign() -> float:
     """+1 if a positive body-x angular velocity decreases :func:`pitch_roll`'s roll, else -1."""
-    import mujoco
-
-    from flapsim.bird.flight.dove_flight import pitch_roll
 
     q = np.array([np.cos(0.05), np.sin(0.05), 0.0, 0.0])  # small rotation about +x
     R = np.zeros(9)
@@ -150,9 +145,6 @@ ROLL_RATE_SIGN = _roll_rate_sign()
 def bank_to_roll(bank_left: float) -> float:
     """The roll angle (in :func:`~flapsim.bird.flight.dove_flight.pitch_roll`'s convention) of a bank
     with the left wing down by ``bank_left`` rad (a left turn)."""
-    import mujoco
-
-    from flapsim.bird.flight.dove_flight import pitch_roll
 
     # left wing down = rotation about +x (forward) by -bank in a right-handed frame with
     # y to the left: find which sign pitch_roll reports for it

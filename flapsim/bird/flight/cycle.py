@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from mujoco import rollout
 
 from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.flight.dove_flight import DoveFlight, reduced_state
@@ -221,7 +222,6 @@ def fly_cycle(fl: DoveFlight, snap: Snapshot | None, p: np.ndarray,
     Raises :class:`~flapsim.core.errors.SimulationError` (one line) when the simulation
     diverges; the flight is then in an undefined state (restore a snapshot).
     """
-    from mujoco import rollout
 
     split(p)  # shape / finiteness check with a one-line error
     m, d = fl.model, fl.data

@@ -15,11 +15,15 @@ from __future__ import annotations
 
 import copy
 import logging
+import time as _time
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from mujoco import rollout
+from tqdm import tqdm
 
+from flapsim.bird.body.feather_dynamics import ModalFeathers, dove_feather_modes
 from flapsim.bird.body.model import Dove, build_xml
 from flapsim.bird.body.params import (
     DOF_NAMES,
@@ -28,6 +32,7 @@ from flapsim.bird.body.params import (
     rectrix_joints,
     rectrix_spread_gains,
 )
+from flapsim.bird.flight.capture import segment_cycles
 from flapsim.bird.flight.wingbeat import (
     ReferenceWingbeat,
     control_table,
@@ -163,7 +168,6 @@ class DoveFlight:
                 feathers = _without(feathers, self.plucked)
             self.polygons = PolygonSet.concat([feathers, body_polygons(self.dove)])
         else:
-            from flapsim.bird.body.feather_dynamics import ModalFeathers, dove_feather_modes
 
             # the deformable feathers are the modal provider's; the trunk stays a polygon set
             self.polygons = body_polygons(self.dove)
@@ -349,7 +353,6 @@ class DoveFlight:
         return out
 
     def _rollout(self, ctrl: np.ndarray):
-        from mujoco import rollout
 
         m, d = self.model, self.data
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -527,7 +530,6 @@ def fly(dove: Dove, wingbeats: int, cfg: FlightConfig | None = None, p: np.ndarr
     standard cruise state for ``wingbeats`` cycles. ``keep_qpos=False`` keeps the full
     positions only at wingbeat ends (a long flight without a video then needs ~45 kB per
     wingbeat instead of ~0.2-0.6 MB)."""
-    import time as _time
 
     if wingbeats < 1:
         raise InputError(f"--wingbeats must be >= 1, got {wingbeats}")
@@ -543,7 +545,6 @@ def fly(dove: Dove, wingbeats: int, cfg: FlightConfig | None = None, p: np.ndarr
         recs = []
         it = range(wingbeats)
         if progress:
-            from tqdm import tqdm
 
             it = tqdm(it, desc="wingbeats", unit="wb")
         t0 = _time.perf_counter()
@@ -574,7 +575,6 @@ def flight_metrics(f: Flight, gravity: float = 9.81) -> dict:
       and feather forces are the only external forces, so their mean over the flight is
       ``m (v_end - v_start) / T`` and the aerodynamic part is that plus ``m g``.
     """
-    from flapsim.bird.flight.capture import segment_cycles
 
     T = float(f.time[-1] - (f.time[0] - (f.time[1] - f.time[0])))
     rel = f.trunk_pos - f.start_pos
@@ -620,7 +620,6 @@ def pose_quat(pitch: float, roll: float, heading: float = 0.0) -> np.ndarray:
     """Trunk quaternion with nose-up ``pitch``, ``roll`` and ``heading`` (about +z), all rad,
     such that :func:`flapsim.bird.flight.dove_flight.pitch_roll` gives back (pitch, roll) (for
     |sin roll| <= cos pitch)."""
-    from flapsim.bird.flight.dove_flight import pitch_roll
 
     # pitch_roll's roll is the wing axis' elevation, asin(y_z) = asin(sin(roll_euler) cos(pitch))
     # for a heading-pitch-roll rotation: invert that, so pitch_roll returns ``roll`` exactly

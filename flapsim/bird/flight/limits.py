@@ -19,6 +19,18 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from flapsim.bird.body.model import Dove
+from flapsim.bird.body.params import DoveParams
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, wind_tunnel
+from flapsim.bird.flight.wingbeat import (
+    RANGE_TOLERANCE,
+    p0,
+    reference_wingbeat,
+    with_flap_and_beat,
+    with_tail_bias,
+    with_twist_bias,
+)
 from flapsim.core.errors import InputError
 
 GRAVITY = 9.81
@@ -68,7 +80,6 @@ class Candidate:
     """Both shoulder twists translated, deg (- supinates: more angle of attack)."""
 
     def params(self, P0: np.ndarray) -> np.ndarray:
-        from flapsim.bird.flight.wingbeat import with_flap_and_beat, with_twist_bias
 
         return with_twist_bias(with_flap_and_beat(P0, self.flap_scale, self.timewarp), self.twist_deg)
 
@@ -93,9 +104,6 @@ def free_flight_range_excess(fl, P: np.ndarray, speed: float) -> float:
     """Largest excursion of any DOF past its range (rad) flying ``P`` for one wingbeat in free
     flight after one reference wingbeat from the level cruise start at ``speed``: how the
     database judges a sample's wingbeat."""
-    from flapsim.bird.flight import cycle
-    from flapsim.bird.flight.dove_flight import FlightConfig
-    from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 
     P0 = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
     fl.reset(FlightConfig(speed=speed), P0)
@@ -107,10 +115,6 @@ def search(candidates: list[Candidate], speeds: list[float], pitches_deg: list[f
            ) -> list[TunnelPoint]:
     """Every candidate at every speed: its free-flight range excess, and (when within the
     database's tolerance) its tunnel forces at every pitch."""
-    from flapsim.bird.body.model import Dove
-    from flapsim.bird.body.params import DoveParams
-    from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, wind_tunnel
-    from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE, p0, reference_wingbeat, with_tail_bias
 
     params = DoveParams.load()
     ref = reference_wingbeat()

@@ -12,11 +12,13 @@ noise, and the stream is sampled at 240 Hz like the paper's capture:
 * steering (turn toward +y = left is positive): the outside wing protracts more and
   beats wider, the inside wing is retracted and pronated (Ros et al. 2015).
 
-Regenerate the data file with ``PYTHONPATH=. python scripts/dove_capture.py``.
+Regenerate the data file with ``python -m flapsim.bird.flight.synthetic_capture [--seed 2013]
+[--out FILE]``; the bundled file is its output (``tests/bird/test_build.py`` compares every entry).
 """
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -242,3 +244,23 @@ def write_reference(path=DATA_FILE, seed: int = 2013) -> CaptureSet:
     cap.save(path, generator=np.array("flapsim.bird.flight.synthetic_capture.synthesize"), seed=np.array(seed),
              kinematics=np.array(repr(asdict(k))), variation=np.array(repr(asdict(v))))
     return cap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description="Regenerate the bundled synthetic dove capture.")
+    ap.add_argument("--seed", type=int, default=2013, help="the draw (default 2013, the bundled one's)")
+    ap.add_argument("--out", default=str(DATA_FILE), help="output .npz (default: the bundled file)")
+    args = ap.parse_args(argv)
+    cap = write_reference(args.out, args.seed)
+    f = 1.0 / cap.durations
+    amp = np.degrees(np.ptp(cap.cycle_matrix()[:, :, 0], axis=1))
+    print(f"wrote {args.out}: {cap.n_cycles} cycles, {len(cap.angles)} frames at {cap.rate_hz} Hz")
+    print(f"wingbeat {f.min():.2f}-{f.max():.2f} Hz (mean {f.mean():.2f}); steering "
+          f"{cap.steering_deg.min():.1f}..{cap.steering_deg.max():.1f} deg, elevation "
+          f"{cap.elevation_deg.min():.1f}..{cap.elevation_deg.max():.1f} deg, speed "
+          f"{cap.speed.min():.2f}..{cap.speed.max():.2f} m/s; stroke amplitude "
+          f"{amp.min():.0f}-{amp.max():.0f} deg")
+
+
+if __name__ == "__main__":
+    main()

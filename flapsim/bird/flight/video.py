@@ -6,6 +6,9 @@ import os
 
 import numpy as np
 
+from flapsim.bird.body.drawing import video_model
+from flapsim.render.video import ChaseCamera, render_video
+
 
 def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float = 30.0,
                width: int = 640, height: int = 480) -> int:
@@ -13,12 +16,10 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
     engine-integrated modal coordinates: :meth:`~flapsim.bird.flight.dove_flight.DoveFlight.frame`),
     subsampled to ``fps``, to ``path``; modal feathers are drawn bent. Returns the number of
     frames."""
-    from flapsim.render.video import ChaseCamera, render_video
 
     model, hook = dove.model, None
     frames = np.asarray(qpos_steps)
     if dove.modal is not None:
-        from flapsim.bird.body.drawing import video_model
 
         model, hook, ix = video_model(dove)
         frames = frames[:, ix]

@@ -23,8 +23,13 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import database_table, load_controller
+from flapsim.bird.control.targets import trim_of_base_flight
 from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
 from flapsim.bird.tasks.path_control import FlightPath, PathTarget, path_metrics, start_on_path
 from flapsim.core.errors import InputError, SimulationError
 
@@ -304,9 +309,6 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
     searches the samples' mirror images, the default; ``options``:
     :func:`~flapsim.bird.control.controller.load_controller`'s others, such as ``clip_request``,
     ``state_weight`` or ``predict``)."""
-    from flapsim.bird.body.model import Dove
-    from flapsim.bird.control.controller import database_table, load_controller
-    from flapsim.bird.flight.dove_flight import DoveFlight
 
     fl = DoveFlight(Dove.load(feathers=task.feathers), table=database_table(db, task.feathers),
                     wind=tuple(task.wind), flow=tuple(task.flow), plucked=tuple(task.plucked))
@@ -323,8 +325,6 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
              mirror: bool = True, **options) -> TaskResult:
     """Fly ``task`` with the learned controller over database ``db`` (default: bundled);
     ``controller``: an already built one (its flight's disturbances must match the task)."""
-    from flapsim.bird.control.targets import trim_of_base_flight
-    from flapsim.bird.flight.dove_flight import FlightConfig
 
     own = controller is None
     if own:
@@ -396,7 +396,6 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
     lost_at = None
     bar = None
     if progress:
-        from tqdm import tqdm
 
         bar = tqdm(total=round(task.path.length, 1), desc="path", unit="m")
     t0 = time.perf_counter()

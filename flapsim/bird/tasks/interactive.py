@@ -30,7 +30,22 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from flapsim.bird.body.drawing import FeatherDrawing
+from flapsim.bird.control.controller import start_cruise
+from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
 from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import FlightConfig
+from flapsim.bird.tasks.flight_tasks import (
+    PushSpec,
+    Task,
+    build_flight,
+    default_aoa_per_g,
+    default_bank_lead,
+    default_climb_per_speed_deficit,
+    default_max_bank,
+)
+from flapsim.bird.tasks.path_control import PathTarget, start_on_path
+from flapsim.bird.tasks.path_shapes import straight
 from flapsim.fluid.flow import ROW, Gust
 from flapsim.render.viewer import (
     FRAME_S,
@@ -102,19 +117,6 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
     ``modal`` (``db``: by default the bundled database of that dove); ``options``: the
     regression's (:func:`~flapsim.bird.control.controller.load_controller`: ``mirror``,
     ``clip_request``, ...)."""
-    from flapsim.bird.control.controller import start_cruise
-    from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
-    from flapsim.bird.flight.dove_flight import FlightConfig
-    from flapsim.bird.tasks.flight_tasks import (
-        PushSpec,
-        Task,
-        build_flight,
-        default_aoa_per_g,
-        default_bank_lead,
-        default_climb_per_speed_deficit,
-        default_max_bank,
-    )
-    from flapsim.bird.tasks.path_control import PathTarget, start_on_path
 
     # a gust primitive that is inert (zero amplitude) until Delete re-packs it in place
     fl, ctl = build_flight(Task(path if path is not None else _dummy_path(),
@@ -137,7 +139,6 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             target = CruiseTarget(trim, altitude=cfg.height, speed=cmd.speed)
         draw = None
         if fl.dove.modal is not None:
-            from flapsim.bird.body.drawing import FeatherDrawing
 
             draw = FeatherDrawing(fl.dove)
         # what is drawn: the dove with its primaries' twist hinges in the skeleton (a flight
@@ -248,7 +249,6 @@ def _place(m: mujoco.MjModel, shown: mujoco.MjData, qpos: np.ndarray, draw) -> N
 
 
 def _dummy_path():
-    from flapsim.bird.tasks.path_shapes import straight
 
     return straight(10.0)
 

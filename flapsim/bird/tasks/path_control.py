@@ -31,8 +31,10 @@ import mujoco
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from flapsim.bird.control.controller import start_cruise
 from flapsim.bird.control.targets import GRAVITY, Trim, target_state
 from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import FlightConfig
 from flapsim.core.errors import DataFileError, InputError
 
 MAX_COORD_M = 1e5
@@ -548,8 +550,6 @@ def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float,
     (level trunk, velocity along the tangent at ``speed``). In a ``wind`` (world, m/s) the
     bird starts as it would be flying there: ``speed`` through the air, crabbed so that its
     ground track is the tangent."""
-    from flapsim.bird.control.controller import start_cruise
-    from flapsim.bird.flight.dove_flight import FlightConfig
 
     t = path.tangent(0.0)
     heading = float(np.arctan2(t[1], t[0]))

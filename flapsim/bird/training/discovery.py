@@ -22,7 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flapsim.bird.control.database import ChunkResult
+from flapsim.bird.control.controller import WingbeatController
+from flapsim.bird.control.database import ChunkResult, load_database, read_header
+from flapsim.bird.control.regression import Regressor
+from flapsim.bird.control.targets import SteerTarget, trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.training.sampling import (
     SampleWorker,
@@ -62,15 +65,10 @@ class DiscoveryWorker:
     """Runs the phase-1 controller on random steering tasks (one task = one sample)."""
 
     def __init__(self, config: DiscoveryConfig) -> None:
-        from flapsim.bird.control.controller import WingbeatController
-        from flapsim.bird.control.database import load_database
-        from flapsim.bird.control.regression import Regressor
-        from flapsim.bird.control.targets import trim_of_base_flight
 
         if not config.db:
             raise InputError("phase 2 needs the phase-1 database (--from DB)")
         self.config = config
-        from flapsim.bird.control.database import read_header
 
         scfg = config.sampling or read_header(config.db).get("config") or {}
         self.sampler = SampleWorker(SamplingConfig.from_dict(scfg) if scfg else SamplingConfig())
@@ -92,7 +90,6 @@ class DiscoveryWorker:
         self.sampler.close()
 
     def sample(self, index: int) -> tuple[dict[str, np.ndarray] | None, str]:
-        from flapsim.bird.control.targets import SteerTarget
 
         c = self.config
         rng = np.random.default_rng([c.seed, index])

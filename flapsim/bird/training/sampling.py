@@ -34,9 +34,9 @@ import numpy as np
 
 from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import N_DOF
-from flapsim.bird.control.database import ChunkResult
+from flapsim.bird.control.database import ChunkResult, load_database
 from flapsim.bird.flight import cycle
-from flapsim.bird.flight.capture import CaptureSet, reference_capture
+from flapsim.bird.flight.capture import CaptureSet, load_capture, reference_capture
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, pose_quat
 from flapsim.bird.flight.wingbeat import (
     N_PARAMS,
@@ -44,10 +44,11 @@ from flapsim.bird.flight.wingbeat import (
     ReferenceWingbeat,
     p0,
     reference_wingbeat,
+    with_flap_and_beat,
     with_tail_bias,
     with_twist_bias,
 )
-from flapsim.bird.training.manifold import WingbeatSet
+from flapsim.bird.training.manifold import Manifold, WingbeatSet
 from flapsim.core.errors import DataFileError, InputError, SimulationError
 from flapsim.core.io import file_sha256
 
@@ -283,7 +284,6 @@ class SamplingConfig(StoredConfig):
         if not (np.isfinite(self.centre_timewarp) and 0.5 <= self.centre_timewarp <= 2.0):
             raise InputError(f"--centre-timewarp must be within 0.5..2, got {self.centre_timewarp}")
         if self.centre_wingbeat:
-            from flapsim.bird.flight.wingbeat import N_PARAMS
 
             c = np.asarray(self.centre_wingbeat)
             if c.shape != (N_PARAMS,) or not np.all(np.isfinite(c)) or not 0.5 <= c[-1] <= 2.0:
@@ -328,13 +328,11 @@ def collect_chunk(sample, start: int, stop: int) -> ChunkResult:
 def load_examples(config: SamplingConfig, ref: ReferenceWingbeat) -> WingbeatSet:
     if config.source == "capture":
         if config.capture:
-            from flapsim.bird.flight.capture import load_capture
 
             cap = load_capture(config.capture).with_mirror()
         else:
             cap = reference_capture(with_mirror=True)
         return capture_wingbeats(cap, ref)
-    from flapsim.bird.control.database import load_database
 
     db = load_database(Path(config.source))
     return WingbeatSet(db.arrays["dP"], db.arrays["alpha"], db.arrays["beta"])
@@ -356,7 +354,6 @@ class SampleWorker:
         self.centre = sampling_centre(self.P0, config) - self.P0
         self.manifold = None
         if config.extrapolate > 0:
-            from flapsim.bird.training.manifold import Manifold
 
             self.manifold = Manifold.fit(self.examples)
 
@@ -437,7 +434,6 @@ def sampling_centre(P0: np.ndarray, config: SamplingConfig) -> np.ndarray:
     """The wingbeat phase 1 draws around: ``centre_wingbeat`` when given, else P0 with both
     shoulder-flap scales multiplied by ``centre_flap_scale`` and the timewarp by
     ``centre_timewarp``."""
-    from flapsim.bird.flight.wingbeat import with_flap_and_beat
 
     if config.centre_wingbeat:
         return np.asarray(config.centre_wingbeat, float)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from flapsim.bird.control.controller import WingbeatController, start_cruise
@@ -75,7 +76,6 @@ def steering_table(controller: WingbeatController, sampler: SampleWorker, trim: 
             # near steady flight: the cruise start tilted by up to 5 deg, two base wingbeats
             start_cruise(fl, controller.P0, roll_deg=float(rng.uniform(-5, 5)))
             d = fl.data
-            import mujoco
 
             q = d.qpos[3:7].copy()
             th = np.radians(rng.uniform(-5, 5))
@@ -162,7 +162,6 @@ def steering_range(controller: WingbeatController, trim: Trim, ask_deg: float = 
 
 
 def _com_vel(fl, snap: cycle.Snapshot) -> np.ndarray:
-    import mujoco
 
     cycle.restore(fl, snap)
     mujoco.mj_subtreeVel(fl.model, fl.data)

@@ -32,6 +32,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from flapsim import __version__
 from flapsim.bird.control.database import (
     DEFAULT_KIND,
@@ -211,7 +213,6 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
 def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int, backend: str,
          address: str | None, chunk_size: int, progress: bool, ident: dict, existing: Any,
          done: dict[int, tuple[int, int]], prefix: _Prefix) -> float:
-    from tqdm import tqdm
 
     writer: DatabaseWriter | None = None
     buffered: list[Any] = []

@@ -1,0 +1,136 @@
+"""The learned wingbeat controller's tuning: one frozen dataclass, loadable from TOML.
+
+:class:`ControllerConfig` holds what :func:`~flapsim.bird.control.controller.load_controller`
+tunes beyond the database, the regression method, k, the mirror images and the way S0 is
+found (those are the command line's ``--db``, ``--method``, ``--k``, ``--no-mirror`` and
+``--predict``). Its field defaults are the rigid dove's; :meth:`ControllerConfig.for_dove`
+gives each dove's own (the modal-feather dove was measured with other values). A TOML file's
+``[controller]`` table overrides the fields it names (``flapsim eval|fly|view --config
+FILE.toml``; ``flapsim list config`` prints the defaults to copy); in code, override with
+:func:`dataclasses.replace`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from flapsim.bird.control.prediction import PREDICT_MODES
+from flapsim.bird.control.regression import DEFAULT_CLIP_REQUEST, DEFAULT_K_DENSE_SHARE
+from flapsim.core.config import from_table, read_toml, to_toml
+from flapsim.core.errors import InputError
+
+#: The tables of a control configuration file, in order: this module's ``[controller]`` and
+#: the path target's ``[path]`` (:class:`flapsim.bird.tasks.config.PathControlConfig`).
+TABLES = ("controller", "path")
+
+#: The most simulated corrections per wingbeat (:attr:`WingbeatController.refine`).
+MAX_REFINE = 5
+
+#: What :attr:`WingbeatController.refine` aims its corrections at and ranks the wingbeats it
+#: simulates by (:attr:`WingbeatController.refine_goal`): ``reachable``, the target with each
+#: component's change from P0's end clipped as the request is (the database's [q, 1 - q]
+#: quantiles, ``clip_request``), or ``full``, the target itself.
+REFINE_GOALS = ("reachable", "full")
+
+#: The learned controller's default :attr:`WingbeatController.carry`, per dove (docs/flight_log.md,
+#: "Carrying the last wingbeat"): measured over five databases each; with modal feathers
+#: 0.4 follows the figure of eight closer but survives fewer pushes, so they keep 0.
+DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
+
+#: Simulated corrections per wingbeat (:attr:`WingbeatController.refine`) by dove (docs/flight_log.md,
+#: "Wingbeats checked by simulation"): 2 for rigid feathers,
+#: measured over five databases at 7 m/s (level circles of 3-8 m both ways followed 31 of 50
+#: times against 8; 6 and 8 N pushes from four sides survived 40 of 40 against 36; the suite
+#: 17 of 22 against 15 on the bundled database) at half the real-time factor; 0 for modal
+#: ones (their bundled database: the same verdicts on 5-8 m circles both ways and 8 N pushes
+#: from the left and below, the figure of eight's Ef 0.231 against 0.240 m, at 0.64x the
+#: speed).
+DEFAULT_REFINE = {"rigid": 2, "modal": 0}
+
+#: :attr:`WingbeatController.refine_goal` by dove. ``reachable`` was measured on the rigid dove
+#: and not made its default (docs/flight_log.md, "Corrections aimed at what a wingbeat can reach": 17 of
+#: the 22 scenarios as ``full``, but 8 N rather than 10 N pushes from all six directions, and
+#: 76 of 100 user-path starts against 83).
+DEFAULT_REFINE_GOAL = {"rigid": "full", "modal": "full"}
+
+#: :attr:`ControllerConfig.lookahead`'s modes.
+LOOKAHEAD_MODES = ("auto", "on", "off")
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """The wingbeat controller's tuning (defaults: the rigid dove's; :meth:`for_dove`)."""
+
+    carry: float = DEFAULT_CARRY["rigid"]
+    """Share 0..1 of the last wingbeat's change from the reference wingbeat that the next one starts from (0: the reference every wingbeat, the paper's; docs/flight.md)."""
+    refine: int = DEFAULT_REFINE["rigid"]
+    """Simulated corrections per wingbeat, 0..5: where the answer would end short of the target it is asked again for the shortfall and the nearest is flown (0: flown as answered, the paper's; docs/flight.md)."""
+    refine_goal: str = DEFAULT_REFINE_GOAL["rigid"]
+    """What the corrections aim at and rank by: "full", the target itself, or "reachable", the target clipped as clip_request clips the request (measured in docs/flight.md)."""
+    lookahead: str = "auto"
+    """Simulate the next wingbeat's reference in a second thread while the corrections run: "on", "off" or "auto" (where it can and two cores are free); the same flight to the bit, ~1.2x faster."""
+    k_dense_share: float = DEFAULT_K_DENSE_SHARE["rigid"]
+    """LWLR's neighbours where a request lies among densely packed samples, as a share of the samples searched, at most k, growing to k where they are sparse (0: always k, the paper's fixed neighbourhood; k-NN: always 0; docs/flight.md)."""
+    clip_request: float = DEFAULT_CLIP_REQUEST
+    """The regression clips each component of a requested state change to the [q, 1-q] quantiles of the database's, a share 0 <= q < 0.5 (0: no clip, the paper's; docs/flight.md)."""
+    state_weight: float = 0.0
+    """Weight 0..1000 of the wingbeat's start state beside dS in the regression's choice of neighbours (0: dS only, the paper's eq. 3; for databases that mix cruise and disturbed pre-states)."""
+
+    def __post_init__(self) -> None:
+        c = self.carry
+        if not (math.isfinite(c) and 0.0 <= c <= 1.0):
+            raise InputError(f"controller carry must be a share 0..1, got {c}")
+        n = self.refine
+        if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= MAX_REFINE:
+            raise InputError(f"controller refine must be 0..{MAX_REFINE} simulated corrections per "
+                             f"wingbeat, got {n!r}")
+        if self.refine_goal not in REFINE_GOALS:
+            raise InputError(f"controller refine_goal must be one of {', '.join(REFINE_GOALS)}, "
+                             f"got {self.refine_goal!r}")
+        if self.lookahead not in LOOKAHEAD_MODES:
+            raise InputError(f"controller lookahead must be one of {', '.join(LOOKAHEAD_MODES)}, "
+                             f"got {self.lookahead!r}")
+        s = self.k_dense_share
+        if not (math.isfinite(s) and 0.0 <= s <= 1.0):
+            raise InputError(f"controller k_dense_share must be a share 0..1 (0: off), got {s}")
+        q = self.clip_request
+        if not (math.isfinite(q) and 0.0 <= q < 0.5):
+            raise InputError(f"controller clip_request must be a share 0 <= q < 0.5, got {q}")
+        w = self.state_weight
+        if not (math.isfinite(w) and 0.0 <= w <= 1e3):
+            raise InputError(f"controller state_weight must be 0..1000, got {w}")
+
+    @classmethod
+    def for_dove(cls, feathers: str = "rigid", predict: str = "simulate") -> ControllerConfig:
+        """The defaults for the ``rigid`` or ``modal``-feather dove; with S0 predicted by
+        regression (``predict="regression"``, which predicts the reference wingbeat's end
+        only) nothing is carried."""
+        if feathers not in DEFAULT_CARRY:
+            raise InputError(f"feathers must be 'rigid' or 'modal', got {feathers!r}")
+        if predict not in PREDICT_MODES:
+            raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
+        return cls(carry=0.0 if predict == "regression" else DEFAULT_CARRY[feathers],
+                   refine=DEFAULT_REFINE[feathers], refine_goal=DEFAULT_REFINE_GOAL[feathers],
+                   k_dense_share=DEFAULT_K_DENSE_SHARE[feathers])
+
+    @classmethod
+    def from_toml(cls, path: str | Path, base: ControllerConfig | None = None) -> ControllerConfig:
+        """``base`` (default: the rigid dove's) with the fields of ``path``'s ``[controller]``
+        table; an unknown key or a value of the wrong type is a one-line
+        :class:`~flapsim.core.errors.DataFileError`, a value out of range an
+        :class:`~flapsim.core.errors.InputError`."""
+        return from_table(base or cls(), read_toml(path, TABLES)["controller"], f"{path} [controller]")
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    def to_toml(self) -> str:
+        """The ``[controller]`` table, each field under its meaning; the modal dove's default
+        is noted where it is not the rigid one's."""
+        rigid, modal = ControllerConfig.for_dove("rigid"), ControllerConfig.for_dove("modal")
+        notes = {f.name: f"modal dove: {getattr(modal, f.name)}" for f in dataclasses.fields(self)
+                 if getattr(modal, f.name) != getattr(rigid, f.name)}
+        return to_toml(self, "controller", notes)
