@@ -241,8 +241,9 @@ def synthesize(seed: int = 2013, takes: int = 10, cycles_per_take: int = 15, rat
 def write_reference(path=DATA_FILE, seed: int = 2013) -> CaptureSet:
     cap = synthesize(seed)
     k, v = Kinematics(), Variation()
-    cap.save(path, generator=np.array("flapsim.bird.flight.synthetic_capture.synthesize"), seed=np.array(seed),
-             kinematics=np.array(repr(asdict(k))), variation=np.array(repr(asdict(v))))
+    cap.save(path, generator=np.array("flapsim.bird.flight.synthetic_capture.synthesize"),
+             seed=np.array(seed), kinematics=np.array(repr(asdict(k))),
+             variation=np.array(repr(asdict(v))))
     return cap
 
 
