@@ -2,7 +2,7 @@
 
 Both are 16 identical links (link length 0.06 m) joined by hinges of uniform stiffness
 1 N m/rad (the paper's Fig. 3 table) and damping 0.002 N m s/rad, on a ground plane with
-friction 1.0 (see ``scripts/modal_make_creatures.py`` for the design):
+friction 1.0 (see :mod:`flapsim.modal.build.creatures` for the design):
 
 * ``loop``: a ring of 16 plates (0.06 x 0.12 x 0.01 m) standing upright (0.0425 kg each,
   0.68 kg in all), closed by a ``connect`` equality whose joint spring is a fixed tendon;

@@ -41,7 +41,7 @@ SEGMENTS = (
 )
 #: mass density of the segments before the lungs (the paper) [kg/m^3]
 BODY_DENSITY = 1044.0
-#: lung volume built into swimmer.xml [L] (scripts/swimmer_generate.py)
+#: lung volume built into swimmer.xml [L] (flapsim.swim.build.swimmer)
 XML_LUNG_L = 3.0
 #: the upper trunk box's depth, width and length [m] at XML_LUNG_L is read from the model
 
@@ -106,7 +106,7 @@ def load_swimmer_model(lung_volume_l: float = XML_LUNG_L, world: str = "pool",
     g = spec.geom("thorax")
     if g is None:
         raise ModelError(f"{path} has no geom 'thorax'; regenerate it with "
-                         "scripts/swimmer_generate.py")
+                         "python -m flapsim.swim.build.swimmer")
     half = np.array(g.size[:3], dtype=float)
     base = g.mass / BODY_DENSITY
     vol = base + lung_volume_l * 1e-3
