@@ -1,5 +1,10 @@
-"""``flapsim bench swimmer``: simulated seconds per wall second for the swimmer, with its
-force providers and PD, against a bare ``mj_step`` of the same model in the same run."""
+"""``flapsim bench swimmer``: simulated seconds per wall second of the swimmer as
+``flapsim swim`` runs it (:func:`flapsim.swim.simulate.swim`: force providers, PD, all
+control layers, recording), against a bare ``mj_step`` of the same model in the same run.
+
+Three swims, each restarted from rest every simulated second so that every repeat sees
+the same states: breaststroke straight on, treading water (its balance feedback rules)
+and the crawl steering along a figure of eight (the per-cycle steering layer)."""
 
 from __future__ import annotations
 
@@ -9,79 +14,59 @@ import time
 import mujoco
 
 from flapsim.swim.goals import figure_eight
-from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
+from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.model import Swimmer
+from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import load_stroke
+
+#: simulated seconds of one repeat: every repeat restarts from rest (a limp, unforced
+#: swimmer would otherwise sink onto the pool floor in the bare case)
+CHUNK_S = 1.0
 
 
 def run(args: argparse.Namespace) -> dict:
     seconds = float(args.seconds or 5.0)
     sw = Swimmer()
-    stroke = load_stroke("breaststroke")
-    layer = BasicStrokeLayer(sw, stroke)
     m, d = sw.model, sw.data
     dt = m.opt.timestep
+    chunk = max(1, int(round(CHUNK_S / dt)))
+    breast = load_stroke("breaststroke")
+    start_pose = BasicStrokeLayer(sw, breast).start_pose(0.0)
 
-    chunk = max(1, int(round(1.0 / dt)))  # 1 s from the start pose, then reset
+    def bare() -> tuple[int, float]:
+        sw.reset(breast.posture, qpos_joints=start_pose)
+        t0 = time.perf_counter()
+        mujoco.mj_step(m, d, nstep=chunk)
+        return chunk, time.perf_counter() - t0
 
-    def bare(n: int) -> None:
-        mujoco.mj_step(m, d, nstep=n)
+    def swimming(stroke: str, target=None):
+        def one() -> tuple[int, float]:
+            r = swim(stroke, CHUNK_S, swimmer=sw, target=target)
+            return int(round(r.seconds / dt)), r.wall_s
+        return one
 
-    def stepper(basic: BasicStrokeLayer, fb: FeedbackLayer | None):
-        """The simulate loop of flapsim.swim.simulate.swim, without its recording."""
-        def run_steps(n: int) -> None:
-            for i in range(n):
-                if i % 5 == 0:
-                    sw.update_flow()
-                    if fb is not None:
-                        fb.update(d)
-                basic.apply(d, dt)
-                mujoco.mj_step(m, d)
-        return run_steps
-
-    tread = BasicStrokeLayer(sw, load_stroke("treading"))
-    crawl = BasicStrokeLayer(sw, load_stroke("crawl"))
-    balance = FeedbackLayer(tread)
-    steering = FeedbackLayer(crawl, target=figure_eight(6.0))
-    # label -> (posture, basic layer, step function)
+    # label -> one repeat (steps, wall seconds)
     cases = {
-        "bare_mj_step": ("prone", layer, bare),
-        "swimmer": ("prone", layer, stepper(layer, None)),
-        "treading_feedback": ("upright", tread, stepper(tread, balance)),
-        "crawl_figure8": ("prone", crawl, stepper(crawl, steering)),
+        "bare_mj_step": bare,
+        "swimmer": swimming("breaststroke"),
+        "treading_feedback": swimming("treading"),
+        "crawl_figure8": swimming("crawl", figure_eight(6.0)),
     }
-
-    def start(label: str) -> None:
-        posture, basic, _ = cases[label]
-        sw.reset(posture, qpos_joints=basic.start_pose(0.0))
-        basic.phase = 0.0
-        for fb in (balance, steering):
-            fb.reset()
-
     out = {}
-    for label, (_, _, fn) in cases.items():
-        providers = label != "bare_mj_step"
-        if providers:
-            sw.attach()
-        start(label)
-        fn(50)  # warm-up (numba compile, caches)
+    for label, one in cases.items():
+        one()  # warm-up (numba compile, caches)
         steps, wall = 0, 0.0
-        while wall < seconds / 4:
-            # every chunk restarts from the same pose, so all runs see the same states
-            # (a limp, unforced swimmer would otherwise sink onto the pool floor)
-            start(label)
-            t0 = time.perf_counter()
-            fn(chunk)
-            wall += time.perf_counter() - t0
-            steps += chunk
+        while wall < seconds / 4 or steps == 0:
+            n, w = one()
+            steps += n
+            wall += w
         sim = steps * dt
         out[label] = {"steps": steps, "sim_s": sim, "wall_s": wall, "realtime_factor": sim / wall,
                       "us_per_step": 1e6 * wall / steps}
-        if providers:
-            sw.detach()
-    ratio = out["swimmer"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
-    ratio_fb = out["treading_feedback"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
-    ratio_st = out["crawl_figure8"]["us_per_step"] / out["bare_mj_step"]["us_per_step"]
+    bare_us = out["bare_mj_step"]["us_per_step"]
+    ratio = out["swimmer"]["us_per_step"] / bare_us
+    ratio_fb = out["treading_feedback"]["us_per_step"] / bare_us
+    ratio_st = out["crawl_figure8"]["us_per_step"] / bare_us
     result = {
         "benchmark": "swimmer",
         "timestep_s": dt,
@@ -97,13 +82,13 @@ def run(args: argparse.Namespace) -> dict:
         "target_realtime_factor": 20.0,
     }
     print(f"swimmer: {len(sw.polygons)} polygons, {result['ellipsoids']} buoyancy ellipsoids, "
-          f"dt {dt * 1e3:g} ms, breaststroke with PD every step")
-    print(f"  bare mj_step     {out['bare_mj_step']['us_per_step']:.1f} us/step "
+          f"dt {dt * 1e3:g} ms, as flapsim swim runs it (all layers, recording)")
+    print(f"  bare mj_step     {bare_us:.1f} us/step "
           f"({out['bare_mj_step']['realtime_factor']:.0f}x real time)")
-    print(f"  full swimmer     {out['swimmer']['us_per_step']:.1f} us/step "
+    print(f"  breaststroke     {out['swimmer']['us_per_step']:.1f} us/step "
           f"({out['swimmer']['realtime_factor']:.1f}x real time; target >= 20x)")
     print(f"  cost vs bare     {ratio:.2f}x")
-    print(f"  treading + feedback layer (50 Hz) {out['treading_feedback']['us_per_step']:.1f} "
+    print(f"  treading water (balance feedback) {out['treading_feedback']['us_per_step']:.1f} "
           f"us/step ({out['treading_feedback']['realtime_factor']:.1f}x real time, "
           f"{ratio_fb:.2f}x bare)")
     print(f"  crawl steering along a figure of eight {out['crawl_figure8']['us_per_step']:.1f} "
