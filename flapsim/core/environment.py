@@ -2,9 +2,9 @@
 
 A controlled flight is chaotic: near the limits of what the dove can do, a verdict turns on
 the last bits of a least-squares fit or a kd-tree query, and those bits depend on the
-packages and on the processor (numerical libraries pick their kernels by CPU). Measured in
-session 18: the same commit (24f0683) lost ``climb-turn-15`` at wingbeat 55 here, where
-session 15 had it followed within 1.76 m. So every command's JSON carries :func:`versions`,
+packages and on the processor (numerical libraries pick their kernels by CPU): the same
+commit has lost ``climb-turn-15`` at wingbeat 55 on one machine and followed it within
+1.76 m on another. So every command's JSON carries :func:`versions`,
 and an evaluation's resumable journal is keyed by them too (a run read back must be the run
 that would be flown again).
 """
