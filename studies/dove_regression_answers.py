@@ -1,16 +1,14 @@
 """How well each database's regression answers the requests of tight turns, in one shot.
 
+    python studies/dove_regression_answers.py [--db seed1.db,seed3.db,...] [--json out.json]
+
 The bundled database flies four tight paths (the S of 3.5 m half circles, a 3 m circle and the
 paper's 3.6 m circles at 0 and 15 deg); every wingbeat's start state, reference end and target
 are logged. Then each database answers each logged request from the same state, with the same
 carried base, and the answer is flown once, without corrections. The error is the corrections'
 ranking error (the bundled database's weights for all, so that the numbers compare), overall,
 without the forward speed (which no wingbeat reaches in a tight turn), and the roll alone.
-
-    python studies/dove_regression_answers.py [--db seed1.db,seed3.db,...] [--json out.json]
-
-Session 21 found the draws alike in every component but the roll (see docs/flight_log.md, "Other
-draws, and twice the samples"). About a minute a database on one core.
+About a minute a database on one core.
 """
 
 from __future__ import annotations
@@ -32,34 +30,41 @@ FLIGHTS = {"s-curve-3.5": (lambda: paths.s_curve(3.5), 3.0),
            "climb-turn-15": (lambda: paths.inclined_circle(incline_deg=15.0), 2.0)}
 
 
-def log_requests(ctl) -> list[dict]:
-    """Every wingbeat's start, reference end, target and carried base over :data:`FLIGHTS`."""
-    log: list[dict] = []
-    original = type(ctl).choose
+class RequestLog:
+    """A controller that flies as ``ctl`` does and logs every wingbeat's request: its start, its
+    reference end, its target and the carried base (``fly_task``'s ``controller``; every other
+    attribute is ``ctl``'s)."""
+
+    def __init__(self, ctl) -> None:
+        self.ctl = ctl
+        self.log: list[dict] = []
+
+    def __getattr__(self, name: str):
+        return getattr(self.ctl, name)
 
     def choose(self, target, snap=None, record=False, push=None):
-        start = snap or cycle.snapshot(self.flight)
-        base = self.reference_params().copy()
+        start = snap or cycle.snapshot(self.ctl.flight)
+        base = self.ctl.reference_params().copy()
 
         def logged(e0):
             S_t = np.asarray(target(e0), float)
-            log.append({"snap": start, "S0": e0.S.copy(), "S_t": S_t.copy(), "base": base,
-                        "surplus": float(getattr(target, "speed_surplus", 0.0))})
+            self.log.append({"snap": start, "S0": e0.S.copy(), "S_t": S_t.copy(), "base": base,
+                             "surplus": float(getattr(target, "speed_surplus", 0.0))})
             return S_t
 
-        return original(self, logged, snap, record, push)
+        return self.ctl.choose(logged, snap, record, push)
 
-    type(ctl).choose = choose
-    try:
-        for name, (shape, tube) in FLIGHTS.items():
-            n0 = len(log)
-            r = fly_task(Task(shape(), tube_m=tube), controller=ctl)
-            for e in log[n0:]:
-                e["path"] = name
-            print(f"bundled flight {name}: {r.status}, {len(log) - n0} wingbeats logged", flush=True)
-    finally:
-        type(ctl).choose = original
-    return log
+
+def log_requests(ctl) -> list[dict]:
+    """Every wingbeat's start, reference end, target and carried base over :data:`FLIGHTS`."""
+    logger = RequestLog(ctl)
+    for name, (shape, tube) in FLIGHTS.items():
+        n0 = len(logger.log)
+        r = fly_task(Task(shape(), tube_m=tube), controller=logger)
+        for e in logger.log[n0:]:
+            e["path"] = name
+        print(f"bundled flight {name}: {r.status}, {len(logger.log) - n0} wingbeats logged", flush=True)
+    return logger.log
 
 
 def answer_errors(ctl, fl, log: list[dict], w: np.ndarray) -> dict:
@@ -89,7 +94,7 @@ def answer_errors(ctl, fl, log: list[dict], w: np.ndarray) -> dict:
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--db", default="", help="comma-separated databases to compare with the bundled one")
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--json", default=None, help="write the errors per database here")
     return ap
 
 
