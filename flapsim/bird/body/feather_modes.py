@@ -70,7 +70,7 @@ class ModalParams:
     first mode carries the feathers' bending (RMS shaft-tip deflection of every feather:
     modes 2-4 add 0.6 %, 0.2 % and 0.07 % of it; their elastic tip twist, 0.16 deg RMS, is
     negligible next to the primaries' hinge twist of ~35 deg), and lift/weight changes by
-    0.1 % (0.9672 with 4 modes, 0.9661 with 1; ``scripts/dove_feather_participation.py``),
+    0.1 % (0.9672 with 4 modes, 0.9661 with 1; ``studies/dove_feather_participation.py``),
     while a flight step costs 1.29x a rigid one with 1 mode and 1.81x with 4 (the engine's
     integration). ``modes=4`` is the paper's reduction."""
     damping_ratio: float = 0.02

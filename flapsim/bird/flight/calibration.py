@@ -2,7 +2,7 @@
 trunk fixed in a headwind, the wings on the reference wingbeat; tip deflection and twist of a
 primary, a secondary and a rectrix over one wingbeat. What the paper shows: the feathers bend
 at the downstroke and the primaries twist open at the upstroke.
-``scripts/dove_feather_calibration.py`` plots it and adds the fixed-trunk lift/weight.
+``studies/dove_feather_calibration.py`` plots it and adds the fixed-trunk lift/weight.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Where the dove's muscle power goes in free flight (:func:`power_budget`): a wingbeat
 repeated from the standard cruise start (by default the reference wingbeat P0 with the tail
-bias: the base controller), over whole wingbeats. ``scripts/dove_power_budget.py`` prints it.
+bias: the base controller), over whole wingbeats. ``studies/dove_power_budget.py`` prints it.
 
 In still air a polygon's lift is perpendicular to its relative flow, so it does no work on
 the polygon: the air takes energy out of the bird only through drag and skin friction,

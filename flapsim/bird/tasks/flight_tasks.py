@@ -72,7 +72,7 @@ DEFAULT_MAX_BANK_DEG = {"rigid": 60.0, "modal": 45.0}
 REFERENCE_PERIOD_S = 0.1075
 
 #: The most lift the rigid dove's wing holds at constant speed at 7-8 m/s, in g (docs/flight_log.md,
-#: "Where the tight turns and steep climbs fail": ``scripts/dove_turn_limit.py``,
+#: "Where the tight turns and steep climbs fail": ``studies/dove_turn_limit.py``,
 #: :mod:`flapsim.bird.flight.limits`). The time a task allows counts a turn tighter than that allows
 #: at the speed asked at the speed where it does (a 3.6 m circle: 5.0 m/s, not 7): a bird
 #: that slows for such a turn, as it must, is not lost by the clock. The paper's lost is a
@@ -219,7 +219,7 @@ class Task:
     start_speed_change: float = 0.0
     """Added to the start's ground speed along its velocity, m/s (0, the default). Near its
     limits a controlled flight is chaotic and one start's verdict says little: verdict-spread
-    studies fly a path from starts under 1 mm/s apart (``scripts/dove_verdict_spread.py``)."""
+    studies fly a path from starts under 1 mm/s apart (``studies/dove_verdict_spread.py``)."""
 
     def __post_init__(self) -> None:
         dv = self.start_speed_change

@@ -129,5 +129,5 @@ USER_PATHS = {
     "s-curve-3.5": lambda: s_curve(3.5),
     "climb-then-turn": climb_then_turn,
 }
-"""The ten held-out paths by name (``scripts/dove_user_paths.py``, ``scripts/dove_verdict_spread.py
+"""The ten held-out paths by name (``studies/dove_verdict_spread.py
 user``): each a function returning a fresh :class:`~flapsim.bird.tasks.path_control.FlightPath`."""

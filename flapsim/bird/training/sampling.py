@@ -233,12 +233,12 @@ class SamplingConfig(StoredConfig):
     centre_timewarp: float = 1.0
     """... and the cycle's duration multiplied by this (< 1: a faster beat). The wingbeats a
     tight turn or a steep climb needs lie beyond the capture's ellipses around P0
-    (``scripts/dove_turn_limit.py``); P0 and the samples' dP stay P0-relative, so such a
+    (``studies/dove_turn_limit.py``); P0 and the samples' dP stay P0-relative, so such a
     database merges with one sampled around P0."""
     centre_wingbeat: tuple = ()
     """The 29 parameters of the wingbeat phase 1 draws around instead (the biases included,
     as flown; empty: P0 with ``centre_flap_scale`` and ``centre_timewarp``). For a wingbeat
-    found by ``scripts/dove_wingbeat_search.py``, say the fastest steady climb: the
+    found by ``studies/dove_wingbeat_search.py``, say the fastest steady climb: the
     capture's ellipses then spread around it, and the samples' dP stay P0-relative, so such
     a database merges with one sampled around P0."""
 

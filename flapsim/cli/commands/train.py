@@ -66,11 +66,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "scaled by S (default 1: around P0)")
     p.add_argument("--centre-timewarp", type=float, default=None, metavar="W",
                    help="phase 1: ... and the cycle's duration times W (< 1: a faster beat; "
-                        "default 1). See scripts/dove_turn_limit.py for the wingbeats tight turns need")
+                        "default 1). See studies/dove_turn_limit.py for the wingbeats tight turns need")
     p.add_argument("--centre-wingbeat", default=None, metavar="FILE",
                    help="phase 1: draw the wingbeats around this wingbeat instead of P0: a JSON "
                         "file with its 29 parameters under \"wingbeat\" (as "
-                        "scripts/dove_wingbeat_search.py writes them) or as a bare list")
+                        "studies/dove_wingbeat_search.py writes them) or as a bare list")
     p.add_argument("--merge", nargs="+", default=None, metavar="DB",
                    help="instead of training: write the samples of these finished databases (of "
                         "the same dove and reference wingbeat) into one database --out, with "
@@ -185,7 +185,7 @@ def read_centre_wingbeat(path: str) -> tuple[float, ...]:
         raise InputError(f"--centre-wingbeat {path} does not exist") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"--centre-wingbeat {path} is not a JSON file ({type(exc).__name__}): give "
-                         "the JSON that scripts/dove_wingbeat_search.py writes") from None
+                         "the JSON that studies/dove_wingbeat_search.py writes") from None
     if isinstance(data, dict):
         data = data.get("wingbeat")
     if not isinstance(data, list) or not all(
