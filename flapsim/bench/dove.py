@@ -320,8 +320,13 @@ def run_eval(args: argparse.Namespace) -> dict:
     from flapsim.cli.commands.eval import execute
 
     workers = int(getattr(args, "workers", None) or 2)
-    opts = scenarios.EvalOptions(db=getattr(args, "db", None), predict=getattr(args, "predict", "simulate"))
-    runs = [(n, opts) for n in scenarios.names(family="flight", all_only=True)]
+    quick = bool(getattr(args, "quick", False))
+    opts = scenarios.EvalOptions(db=getattr(args, "db", None), predict=getattr(args, "predict", "simulate"),
+                                 quick=quick)
+    names = scenarios.names(family="flight", all_only=True)
+    if quick:  # a smoke run: the two cheapest scenarios, in their short variants
+        names = sorted(names, key=lambda n: scenarios.get(n).cost)[:2]
+    runs = [(n, opts) for n in names]
     t0 = time.perf_counter()
     results = execute(runs, workers)
     wall = time.perf_counter() - t0
@@ -333,7 +338,8 @@ def run_eval(args: argparse.Namespace) -> dict:
     out = {"target": "eval", "workers": workers, "runs": len(results), "wall_s": wall,
            "runs_wall_s": busy, "speedup": busy / wall, "parallel_efficiency": busy / wall / workers,
            "simulated_s": sim, "simulated_per_wall_s": sim / wall,
-           "failed": [r["scenario"] for r in results if not r.get("ok")], "predict": opts.predict}
+           "failed": [r["scenario"] for r in results if not r.get("ok")], "predict": opts.predict,
+           "quick": quick}
     print(f"flight evaluation suite (S0: {opts.predict}): {len(results)} runs in {wall:.0f} s on "
           f"{workers} workers "
           f"(speed-up {out['speedup']:.2f}, efficiency {out['parallel_efficiency']:.2f}); "

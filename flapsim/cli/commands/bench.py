@@ -23,6 +23,10 @@ BENCHES: dict[str, str] = {
     "eval": "flapsim.bench.dove:run_eval",
 }
 
+# --quick: the settings of a smoke run, for the options the user left unset
+QUICK: dict[str, object] = {"seconds": 0.2, "polygons": [50], "workers": 1, "samples": 2,
+                            "wingbeats": 1}
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("target", help=f"what to benchmark: {', '.join(BENCHES)}")
@@ -51,6 +55,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
                    help="'eval': how the controller finds S0 (default simulate; see flapsim fly "
                         "--help)")
+    p.add_argument("--quick", action="store_true",
+                   help="a smoke run at the smallest settings (numbers not comparable): the options "
+                        "left unset become --seconds 0.2 --polygons 50 --workers 1 --samples 2 "
+                        "--wingbeats 1, and 'eval' flies only the suite's two cheapest scenarios in "
+                        "their short variants")
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -60,6 +69,10 @@ def run(args: argparse.Namespace) -> dict:
             raise InputError(f"--{flag} must be 1..100000, got {v}")
     if args.target not in BENCHES:
         raise InputError(f"unknown benchmark {args.target!r}; choose one of {', '.join(BENCHES)}")
+    if getattr(args, "quick", False):
+        for flag, value in QUICK.items():
+            if getattr(args, flag, None) is None:
+                setattr(args, flag, value)
     if isinstance(args.polygons, list):  # parsed and bounded by its type; the bench reads text
         args.polygons = ",".join(str(n) for n in args.polygons)
     module_name, func = BENCHES[args.target].split(":")
