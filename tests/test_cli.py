@@ -64,7 +64,7 @@ def test_cli_routes_mujoco_warnings_to_the_log(tmp_path, monkeypatch, caplog):
 
     import mujoco
 
-    from flapsim import cli
+    from flapsim.cli import main as cli
 
     monkeypatch.chdir(tmp_path)
     try:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from flapsim.core.errors import InputError
-from flapsim.core.io import atomic_path, save_npz, write_json
+from flapsim.core.io import atomic_path, save_npz, write_json, write_problem
 
 
 def test_write_json_converts_numpy_and_nan(tmp_path):
@@ -51,7 +51,7 @@ def test_a_signal_right_after_the_temporary_is_made_leaves_no_file(tmp_path, mon
     # machine): the CLI's handler holds it until the name is kept, then it is raised
     import tempfile
 
-    from flapsim import cli
+    from flapsim.cli import main as cli
     from flapsim.core import interrupts
     from flapsim.core.io import atomic_path
 
@@ -68,3 +68,22 @@ def test_a_signal_right_after_the_temporary_is_made_leaves_no_file(tmp_path, mon
             pass
     assert list(tmp_path.iterdir()) == []
     interrupts.check()  # raised once
+
+
+def test_write_problem_creates_and_removes_the_temporary(tmp_path, monkeypatch):
+    # a writable folder: no problem, and nothing left behind by the probe
+    assert write_problem(tmp_path / "r.json") is None
+    assert list(tmp_path.iterdir()) == []
+    # the probe is the temporary atomic_path writes through: when that cannot be created,
+    # the reason is returned (here ENOSPC, what a full disk gives)
+    import flapsim.core.io as io
+
+    def full(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(io.tempfile, "mkstemp", full)
+    assert write_problem(tmp_path / "r.json") == "No space left on device"
+    with pytest.raises(InputError, match="cannot write .*No space left on device"):
+        with atomic_path(tmp_path / "r.json"):
+            pass
+    assert list(tmp_path.iterdir()) == []

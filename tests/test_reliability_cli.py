@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flapsim import cli
+from flapsim.cli import main as cli
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -90,6 +90,45 @@ def test_outputs_are_checked_before_simulating(tmp_path, capsys, monkeypatch):
         ro.chmod(0o755)
 
 
+def _no_work(monkeypatch, command):
+    def work(args):
+        raise AssertionError("worked before checking the outputs")
+
+    monkeypatch.setattr(f"flapsim.cli.commands.{command}.run", work)
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="no /proc (not Linux)")
+def test_a_folder_where_no_file_can_be_made_is_refused_before_any_work(capsys, monkeypatch):
+    # /proc passes a permission-bits check (it is 0555 for everyone but writable for root),
+    # yet no file can be created in it: only creating the temporary proves an output writable
+    _no_work(monkeypatch, "fly")
+    one_line_error(capsys, cli.main(["fly", "--json", "/proc/x.json"]),
+                   "--json /proc/x.json: cannot create a file in /proc")
+    assert not Path("/proc/x.json").exists()
+
+
+def test_a_read_only_folder_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    _no_work(monkeypatch, "fly")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    immutable = False
+    try:
+        if os.access(ro, os.W_OK):  # root writes into a 0555 folder: make it immutable
+            immutable = subprocess.run(["chattr", "+i", str(ro)], capture_output=True).returncode == 0
+            if not immutable:
+                pytest.skip("as root a read-only folder needs chattr +i, unavailable here")
+        rc = cli.main(["fly", "--json", str(ro / "x.json")])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1, err
+        assert "not writable" in err[0] or "cannot create a file in" in err[0], err[0]
+        assert list(ro.iterdir()) == []
+    finally:
+        if immutable:
+            subprocess.run(["chattr", "-i", str(ro)], check=True)
+        ro.chmod(0o755)
+
+
 def test_an_output_never_replaces_an_input(tmp_path, capsys):
     model = tmp_path / "m.xml"
     text = '<mujoco><worldbody><body><joint type="hinge"/><geom size=".1"/></body></worldbody></mujoco>'
@@ -166,7 +205,7 @@ class _FakeResult:
 
 
 def test_sweep_exits_1_when_a_run_failed_and_still_writes_everything(tmp_path, monkeypatch, capsys):
-    import flapsim.swim.simulate as sim
+    import flapsim.swim.sweep as sweep_module
     from flapsim.core.errors import SimulationError
 
     def fake_swim(stroke, seconds, params, **kw):
@@ -174,7 +213,7 @@ def test_sweep_exits_1_when_a_run_failed_and_still_writes_everything(tmp_path, m
             raise SimulationError("the swimmer diverged at t=0.500 s: lower the timestep")
         return _FakeResult(params.water_density)
 
-    monkeypatch.setattr(sim, "swim", fake_swim)
+    monkeypatch.setattr(sweep_module, "swim", fake_swim)  # the name the sweep calls
     js, csv = tmp_path / "s.json", tmp_path / "s.csv"
     rc = cli.main(["sweep", "--vary", "density", "--values", "1000,1100", "--workers", "1",
                    "--seconds", "1", "--json", str(js), "--csv", str(csv)])

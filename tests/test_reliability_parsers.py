@@ -240,7 +240,7 @@ def test_capture_bvh(tmp_path, data):
                                ("bench", "--polygons"), ("animate", "--seconds"),
                                ("sweep", "--workers"), ("modes", "--count")]))
 def test_cli_numbers_parse_or_exit_2_in_one_line(text, option, capsys):
-    from flapsim import cli
+    from flapsim.cli import main as cli
 
     command, flag = option
     argv = [command] + (["m.xml"] if command == "modes" else []) \

@@ -165,7 +165,7 @@ def _without_timings(obj):
     ["swim", "--stroke", "treading", "--seconds", "0.5"],
 ])
 def test_a_command_twice_gives_the_same_json(argv, tmp_path):
-    from flapsim import cli
+    from flapsim.cli import main as cli
 
     out = []
     for k in range(2):

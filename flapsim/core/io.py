@@ -17,6 +17,29 @@ from flapsim.core import interrupts
 from flapsim.core.errors import InputError
 
 
+def _temporary(target: Path, suffix: str | None) -> Path:
+    """Create the empty temporary file :func:`atomic_path` writes ``target`` through, beside it."""
+    parent = target.parent if str(target.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.",
+                               suffix=suffix if suffix is not None else target.suffix, dir=parent)
+    os.close(fd)
+    return Path(tmp)
+
+
+def write_problem(path: str | os.PathLike, suffix: str | None = None) -> str | None:
+    """Why ``path`` cannot be written, or None: the temporary file :func:`atomic_path`
+    would write it through is created beside it and removed again. Permission bits say
+    too little (``/proc`` is writable for its owner, yet no file can be created in it; a
+    read-only mount or a full quota neither), so this is the proof, before any work."""
+    try:
+        with interrupts.deferred():
+            tmp = _temporary(Path(path), suffix)
+            tmp.unlink()
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
@@ -33,11 +56,10 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         # a signal between mkstemp and this try left the temporary file behind (seen at
         # SIGTERM on a loaded machine): the CLI's handlers hold it until the name is kept
         with interrupts.deferred():
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.",
-                                       suffix=suffix if suffix is not None else target.suffix,
-                                       dir=parent)
-            tmp_path = Path(tmp)
-        os.close(fd)
+            try:
+                tmp_path = _temporary(target, suffix)
+            except OSError as exc:
+                raise InputError(f"cannot write {target}: {exc.strerror or exc}") from exc
         # mkstemp creates 0600; give the result the permissions a plain open() would
         umask = os.umask(0)
         os.umask(umask)

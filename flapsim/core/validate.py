@@ -47,6 +47,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from flapsim.core.errors import InputError
+from flapsim.core.io import write_problem
 
 
 @dataclass(frozen=True)
@@ -262,7 +263,8 @@ def check_inputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
 
 
 def check_output_path(flag: str, value: str, kinds: Sequence[str] | None = None) -> Path:
-    """One output path: suffix, not a folder, folder exists and is writable."""
+    """One output path: suffix, not a folder, folder exists, and the temporary file the
+    output is written through (:func:`flapsim.core.io.atomic_path`) can be created there."""
     p = Path(str(value)).expanduser()
     if kinds and p.suffix.lower() not in kinds:
         raise InputError(f"{flag} {value}: must end in {' or '.join(kinds)}")
@@ -275,6 +277,9 @@ def check_output_path(flag: str, value: str, kinds: Sequence[str] | None = None)
         raise InputError(f"{flag} {value}: {parent} is not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {value}: folder {parent} is not writable")
+    problem = write_problem(p)  # the permission bits can say yes where no file can be made
+    if problem is not None:
+        raise InputError(f"{flag} {value}: cannot create a file in {parent} ({problem})")
     return p
 
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from flapsim import cli
+from flapsim.cli import main as cli
 
 
 def test_swim_command_writes_json_and_track(tmp_path, capsys):

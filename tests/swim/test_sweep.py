@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from flapsim import cli
+from flapsim.cli import main as cli
 from flapsim.core.errors import InputError
 from flapsim.swim.sweep import sweep, table
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flapsim import cli
+from flapsim.cli import main as cli
 
 REPO = Path(__file__).resolve().parents[2]
 

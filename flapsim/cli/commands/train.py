@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from flapsim.core.errors import InputError
+from flapsim.core.io import write_problem
 
 HELP = ("train the dove's controller database: sample wingbeats in parallel (local processes "
         "or Ray), resumable, into one database file")
@@ -105,6 +106,9 @@ def _writable_file(path: str, flag: str) -> Path:
         raise InputError(f"{flag} {path}: folder {parent} does not exist (create it first)")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {path}: folder {parent} is not writable")
+    problem = write_problem(p)  # the permission bits can say yes where no file can be made
+    if problem is not None:
+        raise InputError(f"{flag} {path}: cannot create a file in {parent} ({problem})")
     if p.exists() and not os.access(p, os.R_OK | os.W_OK):
         raise InputError(f"{flag} {path} exists but is not readable and writable")
     return p
