@@ -19,14 +19,32 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import platform
+import tempfile
 import time
 
 import mujoco
 import numpy as np
+from mujoco import rollout
 
+from flapsim import scenarios
 from flapsim.bird.body.model import Dove
-from flapsim.bird.flight.dove_flight import FlightConfig, fly
+from flapsim.bird.control.controller import (
+    BaseController,
+    attach_predictor,
+    fly_controlled,
+    load_controller,
+    make_lookahead,
+    start_cruise,
+)
+from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
+from flapsim.bird.flight import cycle
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, fly
+from flapsim.bird.flight.wingbeat import control_table, p0, with_tail_bias
+from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
+from flapsim.bird.training.train import train
+from flapsim.scenarios import runner
 
 
 def _measure(dove: Dove, seconds: float) -> dict:
@@ -38,8 +56,8 @@ def _measure(dove: Dove, seconds: float) -> dict:
     per_wb = (time.perf_counter() - t0) / 2
     n_wb = max(2, int(seconds / per_wb))
     res = {}
-    for name, rollout in (("rollout", True), ("python_loop", False)):
-        f = fly(dove, n_wb, FlightConfig(), use_rollout=rollout, keep_qpos=False)
+    for name, use_rollout in (("rollout", True), ("python_loop", False)):
+        f = fly(dove, n_wb, FlightConfig(), use_rollout=use_rollout, keep_qpos=False)
         sim = len(f.time) * dt
         res[name] = {"wingbeats": n_wb, "simulated_s": sim, "wall_s": f.wall_time,
                      "real_time_factor": sim / f.wall_time,
@@ -61,10 +79,7 @@ def _interleaved_step_cost(doves: dict, repeats: int = 7) -> dict:
     doves taken in turn, the least of ``repeats`` tries in this thread's CPU time. Wall times of
     separate runs swing by 30-80 % on a shared machine (another process's turns count); this
     ratio stays within a few per cent."""
-    from mujoco import rollout
 
-    from flapsim.bird.flight.dove_flight import DoveFlight
-    from flapsim.bird.flight.wingbeat import control_table, p0, with_tail_bias
 
     cfg = FlightConfig()
     p = with_tail_bias(p0(), cfg.tail_bias_deg)
@@ -146,11 +161,7 @@ def run_train(args: argparse.Namespace) -> dict:
     """``flapsim bench train``: phase-1 samples per second on W worker processes, against
     the same sampler in this process (parallel efficiency) and against bare ``mj_step``
     (what a sample costs in steps of the bare model)."""
-    import os
-    import tempfile
 
-    from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
-    from flapsim.bird.training.train import train
 
     workers = getattr(args, "workers", None) or min(2, os.cpu_count() or 1)
     n = getattr(args, "samples", None) or 150 * workers
@@ -207,20 +218,7 @@ def run_controller(args: argparse.Namespace) -> dict:
     what a controlled wingbeat costs against a base wingbeat (the P0 prediction, the regression
     and the flown wingbeat), and each against a bare ``mujoco.rollout`` of P0 (the floor: no controller, no
     Python), all in the same run."""
-    from mujoco import rollout
 
-    from flapsim.bird.control.controller import (
-        BaseController,
-        attach_predictor,
-        fly_controlled,
-        load_controller,
-        make_lookahead,
-        start_cruise,
-    )
-    from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
-    from flapsim.bird.flight import cycle
-    from flapsim.bird.flight.dove_flight import DoveFlight
-    from flapsim.bird.flight.wingbeat import control_table
 
     n = max(4, int(getattr(args, "wingbeats", None) or 20))
     db = getattr(args, "db", None)
@@ -296,13 +294,13 @@ def run_controller(args: argparse.Namespace) -> dict:
           f"{out['database_samples']} samples): "
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
-    print(f"  --lookahead on (the next reference on a second core): {out['real_time_factor_lookahead']:.1f}x "
+    print(f"  lookahead on (the next reference on a second core): {out['real_time_factor_lookahead']:.1f}x "
           f"real time, {out['lookahead_speedup']:.2f}x the default's, "
           f"{'the same flight to the bit' if lookahead_same else 'A DIFFERENT FLIGHT (a bug)'}")
     print(f"  --predict coarse: {out['real_time_factor_coarse']:.1f}x real time; --predict regression: "
           f"{out['real_time_factor_regression']:.1f}x")
     rf = out["real_time_factor_refine"]
-    print(f"  --refine 0 / 1 / 2 (default {ctl.refine}): {rf[0]:.1f}x / {rf[1]:.1f}x / "
+    print(f"  refine 0 / 1 / 2 (default {ctl.refine}): {rf[0]:.1f}x / {rf[1]:.1f}x / "
           f"{rf[2]:.1f}x real time")
     print(f"  against a bare rollout of the reference wingbeat ({bare:.1f}x real time): learned "
           f"{r['learned']:.2f}, --predict coarse {r['learned_coarse']:.2f}, --predict regression "
@@ -316,9 +314,6 @@ def run_eval(args: argparse.Namespace) -> dict:
     all``) on ``--workers`` processes (default 2): its wall time, the simulated seconds per
     wall second, and the parallel speed-up (the runs' own wall times summed over the suite's)
     measured in the same run."""
-    from flapsim import scenarios
-    from flapsim.cli.commands.eval import execute
-
     workers = int(getattr(args, "workers", None) or 2)
     quick = bool(getattr(args, "quick", False))
     opts = scenarios.EvalOptions(db=getattr(args, "db", None), predict=getattr(args, "predict", "simulate"),
@@ -328,7 +323,7 @@ def run_eval(args: argparse.Namespace) -> dict:
         names = sorted(names, key=lambda n: scenarios.get(n).cost)[:2]
     runs = [(n, opts) for n in names]
     t0 = time.perf_counter()
-    results = execute(runs, workers)
+    results = runner.execute(runs, workers)
     wall = time.perf_counter() - t0
     busy = float(sum(r["wall_s"] for r in results))
     sim = 0.0

@@ -105,8 +105,8 @@ def _toml_value(v: Any) -> str:
 
 
 def to_toml(obj: Any, table: str, notes: Mapping[str, str] | None = None) -> str:
-    """``obj``'s fields as the TOML table ``[table]``, each under its docstring as a comment (``notes``: more words after a field's value, such as another dove's
-    default)."""
+    """``obj``'s fields as the TOML table ``[table]``, each under its docstring as a comment
+    (``notes``: more words after a field's value, such as another dove's default)."""
     docs = field_docs(type(obj))
     notes = notes or {}
     lines = [f"[{table}]"]

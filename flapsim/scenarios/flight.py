@@ -10,11 +10,24 @@ path against the flown trajectory in 3D and the metrics per wingbeat; videos
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 
-from flapsim.scenarios import EvalOptions, Scenario, get, register
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.targets import GRAVITY
+from flapsim.bird.flight.capture import DATA_FILE, load_capture
+from flapsim.bird.flight.limits import turn_radius
+from flapsim.bird.flight.video import dove_video
+from flapsim.bird.tasks import path_shapes as paths
+from flapsim.bird.tasks.config import PathControlConfig
+from flapsim.bird.tasks.flight_tasks import Forest, PushSpec, Task, Tree, fly_task, wing_load_factor
+from flapsim.bird.tasks.path_control import FlightPath, load_path
+from flapsim.core.errors import InputError
+from flapsim.fluid import flow
+from flapsim.scenarios.plots import flight_plot
+from flapsim.scenarios.registry import EvalOptions, Scenario, get, register
 
 PUSH_FORCES_N = (3.0, 6.0, 8.0, 10.0, 12.0)
 """The paper pushed with 3-12 N (its Fig. 16); it withstood up to 8 N."""
@@ -64,38 +77,28 @@ def _fly(sc: Scenario, opt: EvalOptions, task, tag: str = "") -> tuple:
     return r, files
 
 
-_TASK_OPTIONS = ("bank_lead_s", "speed", "aoa_per_g_deg", "climb_per_speed_deficit",
-                 "turn_load_factor", "turn_speed_floor", "start_speed_change", "max_bank_deg")
+_TASK_OPTIONS = ("speed", "start_speed_change")
 
 
 def _fly_task(task, opt: EvalOptions, record: bool):
-    """:func:`~flapsim.bird.tasks.flight_tasks.fly_task` with the options' controller."""
-    import dataclasses
-
-    from flapsim.bird.tasks.flight_tasks import fly_task
-
-    # the path target's options given (None: the task's own), by the same names on both
+    """:func:`~flapsim.bird.tasks.flight_tasks.fly_task` with the options' controller and
+    path target."""
+    # the options given (None: the task's own), by the same names on both
     given = {name: getattr(opt, name) for name in _TASK_OPTIONS if getattr(opt, name) is not None}
     task = dataclasses.replace(task, **given)
+    task = (opt.path_control or PathControlConfig.for_dove(task.feathers)).apply(task)
     return fly_task(task, opt.db, method=opt.method, k=opt.k, mirror=opt.mirror, record=record,
-                    clip_request=opt.clip_request, state_weight=opt.state_weight, predict=opt.predict,
-                    k_dense=opt.k_dense, carry=opt.carry, refine=opt.refine,
-                    refine_goal=opt.refine_goal, lookahead=opt.lookahead)
+                    predict=opt.predict, config=opt.controller)
 
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:
     files: list[str] = []
     stem = sc.name + (f"-{tag}" if tag else "")
     if opt.plots_dir:
-        from flapsim.scenarios.plots import flight_plot
-
         out = Path(opt.plots_dir) / f"{stem}.png"
         flight_plot(task.path, r, out, title=f"{stem}: {r.status}", forest=task.forest)
         files.append(str(out))
     if opt.video_dir and r.qpos is not None and len(r.qpos):
-        from flapsim.bird.body.model import Dove
-        from flapsim.bird.flight.video import dove_video
-
         out = Path(opt.video_dir) / f"{stem}.mp4"
         dove_video(Dove.load(feathers=opt.feathers), r.qpos, out, opt.fps, *opt.size)
         files.append(str(out))
@@ -112,15 +115,10 @@ def _result(r, files: list[str], **extra) -> dict:
 def run_path(sc: Scenario, opt: EvalOptions) -> dict:
     """Follow ``sc.params['shape']`` (a :mod:`flapsim.bird.tasks.path_shapes` function and its
     arguments), or the user's ``options.path_file``."""
-    from flapsim.bird.tasks import path_shapes as paths
-    from flapsim.bird.tasks.flight_tasks import Task
-    from flapsim.bird.tasks.path_control import load_path
 
     p = dict(sc.params)
     if p.get("shape") == "file":
         if not opt.path_file:
-            from flapsim.core.errors import InputError
-
             raise InputError("the path scenario needs a path file: flapsim eval --path FILE")
         path = load_path(opt.path_file)
     else:
@@ -139,7 +137,6 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         extra.update(_mirror_flight(sc, opt, task, r, files))
     if np.isfinite(geometry.sustained_radius_m):
         # the level turn's load factor at the speed flown: sqrt(1 + (v^2 / (g r))^2)
-        from flapsim.bird.control.targets import GRAVITY
 
         v = opt.speed if opt.speed is not None else task.speed
         extra["sustained_turn_load_factor"] = float(
@@ -148,8 +145,6 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         if opt.feathers == "rigid":
             # what the wing holds there (measured for rigid feathers only): a path that asks
             # more can be followed only by slowing into its turns
-            from flapsim.bird.flight.limits import turn_radius
-            from flapsim.bird.tasks.flight_tasks import wing_load_factor
 
             n = wing_load_factor(v)
             if n is not None:
@@ -174,9 +169,7 @@ def _mirror_flight(sc: Scenario, opt: EvalOptions, task, r, files: list[str]) ->
     range to either side is measured over both (the dove and the regression's samples are
     mirror images of themselves: each flight is the other's mirror wherever they meet the
     same request). ``files`` gets the mirror flight's."""
-    import dataclasses
 
-    from flapsim.bird.tasks.path_control import FlightPath
 
     mirrored = dataclasses.replace(task, path=FlightPath(np.asarray(task.path.points, float)
                                                          * np.array([1.0, -1.0, 1.0])))
@@ -194,14 +187,11 @@ def _mirror_flight(sc: Scenario, opt: EvalOptions, task, r, files: list[str]) ->
 
 
 def _flow(spec) -> tuple:
-    from flapsim.fluid import flow
-
     return tuple(getattr(flow, kind)(**kw) for kind, kw in spec)
 
 
 def capture_steering_range() -> list[float]:
     """Smallest and largest steering per wingbeat in the bundled capture set, deg."""
-    from flapsim.bird.flight.capture import DATA_FILE, load_capture
 
     cap = load_capture(DATA_FILE)
     return [float(np.min(cap.steering_deg)), float(np.max(cap.steering_deg))]
@@ -213,8 +203,6 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
     """Level straight flight pushed once at 1 s, for each force of the table; survived =
     never farther than :data:`PUSH_TUBE_M` from the 60 m path, and back within
     :data:`PUSH_BACK_M` of it at its end."""
-    from flapsim.bird.tasks import path_shapes as paths
-    from flapsim.bird.tasks.flight_tasks import PushSpec, Task
 
     direction = sc.params["direction"]
     forces = (8.0,) if opt.quick else PUSH_FORCES_N
@@ -250,8 +238,6 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     """A leader on a path and followers on perturbed copies of it (the paper: control points
     moved randomly within 1 m), each flown by its own controller; collisions between birds
     are trunks closer than one span (0.51 m) at the same instant."""
-    from flapsim.bird.tasks import path_shapes as paths
-    from flapsim.bird.tasks.flight_tasks import Task
 
     p = sc.params
     rng = np.random.default_rng([opt.seed, 7])
@@ -315,7 +301,6 @@ def min_separation(tracks: list[tuple[np.ndarray, np.ndarray]]) -> float:
 def make_forest(path, seed: int, n_trees: int = 60, clearance_m: float = 2.5):
     """Trees on the 50 x 50 m ground around ``path``: random positions (seeded), each kept
     ``clearance_m`` plus its crown from the path, heights 8-15 m."""
-    from flapsim.bird.tasks.flight_tasks import Forest, Tree
 
     rng = np.random.default_rng([seed, 263])
     trees, tries = [], 0
@@ -332,10 +317,6 @@ def make_forest(path, seed: int, n_trees: int = 60, clearance_m: float = 2.5):
 
 
 def run_forest(sc: Scenario, opt: EvalOptions) -> dict:
-    from flapsim.bird.tasks import path_shapes as paths
-    from flapsim.bird.tasks.flight_tasks import Task
-    from flapsim.bird.tasks.path_control import FlightPath
-
     path = paths.forest_path()
     if opt.quick:  # its first ~60 m
         path = FlightPath(path.points[:5])

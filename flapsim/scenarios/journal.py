@@ -20,8 +20,10 @@ import os
 from pathlib import Path
 from typing import Any
 
+from flapsim.bird.control.controller import bundled_database_path
 from flapsim.core.errors import InputError
 from flapsim.core.io import _jsonable, atomic_path
+from flapsim.scenarios.registry import get
 
 KIND = "flapsim-eval-journal"
 VERSION = 1
@@ -41,8 +43,9 @@ def _file_digest(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-#: Options that change how fast a run goes, never what it gives: not in the fingerprint.
-WALL_TIME_ONLY = ("lookahead",)
+#: Options that change how fast a run goes, never what it gives: not in the fingerprint
+#: (``(table, key)``: a key of the options' table, None: of the options themselves).
+WALL_TIME_ONLY = (("controller", "lookahead"),)
 
 
 def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
@@ -50,8 +53,6 @@ def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
     (``to_dict()``), ``version`` (the software's: :func:`flapsim.core.environment.tag`), and the
     content of the database and path file each reads (the bundled database stands for
     ``db=None`` on a flight)."""
-    from flapsim.scenarios import get
-
     files: dict[str, str] = {}
 
     def digest(p: str | os.PathLike | None) -> str | None:
@@ -65,12 +66,12 @@ def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
     items = []
     for name, opts in runs:
         d = opts.to_dict() if hasattr(opts, "to_dict") else dict(opts)
-        for k in WALL_TIME_ONLY:
-            d.pop(k, None)
+        for table, k in WALL_TIME_ONLY:
+            where = d if table is None else d.get(table)
+            if isinstance(where, dict):
+                where.pop(k, None)
         db = d.get("db")
         if db is None and get(name).family == "flight":
-            from flapsim.bird.control.controller import bundled_database_path
-
             db = bundled_database_path(d.get("feathers", "rigid"))
         items.append({"scenario": name, "options": d, "db_sha256": digest(db),
                       "path_sha256": digest(d.get("path_file"))})

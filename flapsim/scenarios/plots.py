@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flapsim.bird.tasks.path_control import quat_distance
 from flapsim.core.io import atomic_path
 
 
@@ -17,7 +18,6 @@ def flight_plot(path, r, out: str | Path, title: str = "", forest=None) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from flapsim.bird.tasks.path_control import quat_distance
 
     fig = Figure(figsize=(14.0, 6.0), dpi=100)
     FigureCanvasAgg(fig)

@@ -26,7 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from flapsim.scenarios import EvalOptions, Scenario, register
+from flapsim.core.errors import FlapsimError
+from flapsim.core.io import atomic_video
+from flapsim.scenarios.registry import EvalOptions, Scenario, register
+from flapsim.swim.dive import SurfaceDive
+from flapsim.swim.goals import Point, Waypoints, figure_eight, load_trajectory
+from flapsim.swim.model import SwimmerParams
+from flapsim.swim.plots import track_plot
+from flapsim.swim.simulate import swim
 
 TRAJECTORY_FILE = Path(__file__).resolve().parents[1] / "swim" / "data" / "trajectories" / "zigzag.csv"
 #: a cross current's speed in the paper's Fig. 15 task here [m/s]
@@ -38,15 +45,12 @@ CROSS_CURRENT_BOUND = 2.5
 
 def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "", **kw):
     """One swim with the options' layers, its plot and video; (result, files)."""
-    from flapsim.swim.simulate import swim
 
     files: list[str] = []
     stem = sc.name + (f"-{tag}" if tag else "") + f"-{opt.layers}"
     with contextlib.ExitStack() as stack:
         on_frame, fps = None, 0.0
         if opt.video_dir:
-            from flapsim.core.io import atomic_video
-
             out = Path(opt.video_dir) / f"{stem}.mp4"
             on_frame = stack.enter_context(atomic_video(out, fps=opt.fps, codec="libx264",
                                                         quality=7))
@@ -55,8 +59,6 @@ def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "",
         r = swim(sc.params["stroke"], seconds, target=target, layers=opt.layers, video_fps=fps,
                  video_size=(opt.size[1], opt.size[0]), on_frame=on_frame, **kw)
     if opt.plots_dir:
-        from flapsim.swim.plots import track_plot
-
         out = Path(opt.plots_dir) / f"{stem}.png"
         track_plot(r, str(out), title=f"{stem}: {r.stroke}, layers {opt.layers}")
         files.append(str(out))
@@ -84,8 +86,6 @@ def _seconds(sc: Scenario, opt: EvalOptions) -> float:
 
 # ------------------------------------------------------------------ runners
 def figure_eight_runner(sc: Scenario, opt: EvalOptions) -> dict:
-    from flapsim.swim.goals import figure_eight
-
     r, files = _swim(sc, opt, figure_eight(sc.params["radius_m"]), _seconds(sc, opt))
     m = _metrics(r)
     done = m["time_to_reach_s"] is not None
@@ -101,7 +101,6 @@ def figure_eight_runner(sc: Scenario, opt: EvalOptions) -> dict:
 def chase_runner(sc: Scenario, opt: EvalOptions) -> dict:
     """A (moving) point, optionally across a current: the mean distance within
     ``params['bound_m']``."""
-    from flapsim.swim.goals import Point
 
     x, y, vx, vy = sc.params["target"]
     cur = tuple(sc.params.get("current", (0.0, 0.0, 0.0)))
@@ -120,8 +119,6 @@ def chase_runner(sc: Scenario, opt: EvalOptions) -> dict:
 
 
 def trajectory_runner(sc: Scenario, opt: EvalOptions) -> dict:
-    from flapsim.swim.goals import load_trajectory
-
     traj = load_trajectory(str(TRAJECTORY_FILE))
     r, files = _swim(sc, opt, traj, _seconds(sc, opt))
     m = _metrics(r)
@@ -138,9 +135,6 @@ def dive_runner(sc: Scenario, opt: EvalOptions) -> dict:
     below by a surface dive (:class:`flapsim.swim.dive.SurfaceDive`: breathe out, pike,
     legs up, swim on; breathe in once there). Reached: the head or the pelvis within
     the waypoint radius of the point; surfaced: the head above the water afterwards."""
-    from flapsim.swim.dive import SurfaceDive
-    from flapsim.swim.goals import Waypoints
-    from flapsim.swim.model import SwimmerParams
 
     wp = Waypoints(np.asarray(sc.params["waypoints"], dtype=float), sc.params["radius_m"])
     lungs = sc.params.get("lungs_l", 3.0)
@@ -174,9 +168,6 @@ def dive_runner(sc: Scenario, opt: EvalOptions) -> dict:
 def density_runner(sc: Scenario, opt: EvalOptions) -> dict:
     """The paper's Fig. 16: the moving-target chase in several fluid densities (one
     process: ``flapsim eval`` already runs scenarios in parallel)."""
-    from flapsim.core.errors import FlapsimError
-    from flapsim.swim.goals import Point
-    from flapsim.swim.model import SwimmerParams
 
     densities = sc.params["quick_densities"] if opt.quick else sc.params["densities"]
     x, y, vx, vy = sc.params["target"]

@@ -7,7 +7,8 @@ import pytest
 
 from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import DOF_NAMES
-from flapsim.bird.control.controller import DEFAULT_CARRY, WingbeatController, load_controller
+from flapsim.bird.control.config import DEFAULT_CARRY, ControllerConfig
+from flapsim.bird.control.controller import WingbeatController, load_controller
 from flapsim.bird.control.regression import Regressor
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
@@ -64,23 +65,27 @@ def test_the_carried_change_is_a_geometric_sum(flight, carry):
     np.testing.assert_allclose(ctl.choose(lambda e0: e0.S).P - ctl.P0, D, atol=1e-15)
 
 
-def test_carry_options_are_checked(flight, capsys):
+def test_carry_options_are_checked(flight, capsys, tmp_path):
     assert all(0.0 <= c <= 1.0 for c in DEFAULT_CARRY.values())
     for bad in (-0.1, 1.5, float("nan")):
         with pytest.raises(InputError, match="carry"):
             _controller(flight, bad)
-        with pytest.raises(InputError, match="--carry must be a share 0..1"):
+        with pytest.raises(InputError, match="carry must be a share 0..1"):
             load_controller(flight, carry=bad)
-    with pytest.raises(InputError, match="--carry needs S0 simulated"):
+    with pytest.raises(InputError, match="carry needs S0 simulated"):
         load_controller(flight, carry=0.5, predict="regression")
     # the default carries nothing where S0 is predicted for P0 alone
     assert load_controller(flight, predict="regression").carry == 0.0
+    assert ControllerConfig.for_dove("rigid", predict="regression").carry == 0.0
     assert load_controller(flight, carry=0.3).carry == 0.3
-    assert load_controller(flight).carry == DEFAULT_CARRY["rigid"] == 0.4
+    assert load_controller(flight, config=ControllerConfig(carry=0.3)).carry == 0.3
+    assert load_controller(flight).carry == DEFAULT_CARRY["rigid"] == ControllerConfig().carry == 0.4
+    config = tmp_path / "carry.toml"
+    config.write_text("[controller]\ncarry = 2\n")
     for command in (["eval", "--scenario", "figure8-level"], ["fly", "--controller", "learned"]):
-        assert main([*command, "--carry", "2"]) == 2
+        assert main([*command, "--config", str(config)]) == 2
         err = capsys.readouterr().err.strip()
-        assert "--carry must be a share 0..1" in err and "\n" not in err
+        assert "carry must be a share 0..1" in err and "carry.toml" in err and "\n" not in err
 
 
 def test_the_coarse_prediction_flies_the_carried_reference(flight):

@@ -80,29 +80,33 @@ def test_the_default_is_half_a_percent_for_rigid_feathers_and_off_for_modal():
         assert ctl.regressor.k_dense == round(0.005 * n) and ctl.regressor.k == round(0.02 * n)
         lo, hi = ctl.regressor.dense_radii
         assert 0 < lo < hi
-        assert load_controller(fl, k_dense=0).regressor.dense_radii is None  # the paper's fixed k
+        # the paper's fixed k
+        assert load_controller(fl, k_dense_share=0.0).regressor.dense_radii is None
+        # k-NN has no dense neighbourhood, whatever the share
         assert load_controller(fl, method="knn").regressor.k_dense == 0
-        with pytest.raises(InputError, match="k-dense"):
-            load_controller(fl, method="knn", k_dense=100)
-        # the default stays within a smaller k; an explicit k_dense above k is an error
+        assert load_controller(fl, method="knn", k_dense_share=0.01).regressor.k_dense == 0
+        # the share stays within a smaller k
         assert load_controller(fl, k=50).regressor.k_dense == 50
-        with pytest.raises(InputError, match="k_dense must be 1..k"):
-            load_controller(fl, k=50, k_dense=100)
+        with pytest.raises(InputError, match="k_dense_share must be a share"):
+            load_controller(fl, k_dense_share=-0.1)
     finally:
         fl.close()
     fl = DoveFlight(Dove.load(feathers="modal"))
     try:
         assert load_controller(fl).regressor.dense_radii is None
-        assert load_controller(fl, k_dense=100).regressor.k_dense == 100
+        ctl = load_controller(fl, k_dense_share=0.005)
+        assert ctl.regressor.k_dense == round(0.005 * ctl.regressor.n)
     finally:
         fl.close()
 
 
 @pytest.mark.parametrize("command", [["eval", "--scenario", "figure8-level"],
                                      ["fly", "--controller", "learned"]])
-def test_the_cli_refuses_a_negative_k_dense(capsys, command):
+def test_the_cli_refuses_a_negative_k_dense_share(capsys, tmp_path, command):
     from flapsim.cli.main import main
 
-    assert main([*command, "--k-dense", "-1"]) == 2
+    config = tmp_path / "dense.toml"
+    config.write_text("[controller]\nk_dense_share = -1\n")
+    assert main([*command, "--config", str(config)]) == 2
     err = capsys.readouterr().err.strip()
-    assert "--k-dense" in err and "\n" not in err
+    assert "k_dense_share" in err and "\n" not in err

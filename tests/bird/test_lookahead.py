@@ -87,11 +87,11 @@ def test_a_lookahead_is_not_taken_once_the_flow_has_changed(flight):
 
 
 def test_the_lookahead_setting_is_an_error_where_it_cannot_run(flight, monkeypatch):
-    with pytest.raises(InputError, match="--refine 1 or more"):
+    with pytest.raises(InputError, match="refine = 1 or more"):
         C.make_lookahead(flight, "on", 0, "simulate")
     with pytest.raises(InputError, match="--predict simulate"):
         C.make_lookahead(flight, "on", 2, "coarse")
-    with pytest.raises(InputError, match="--lookahead must be one of"):
+    with pytest.raises(InputError, match="lookahead must be one of"):
         C.make_lookahead(flight, "yes", 2, "simulate")
     assert C.make_lookahead(flight, "off", 2, "simulate") is None
     # auto: quietly off where it cannot run, or on a single core

@@ -154,7 +154,7 @@ def test_fly_path_without_wingbeats_gets_the_tasks_time_budget(tmp_path, monkeyp
     """``fly --path`` without ``--wingbeats`` hands the task no wingbeat count, so it is
     flown for eval's time budget in seconds (the old count of 0.1075 s reference wingbeats
     gave shorter learned wingbeats less time); ``--wingbeats N`` still caps it at N."""
-    import flapsim.bird.tasks.flight_tasks as tasks
+    import flapsim.cli.commands.fly as fly_command
 
     seen = []
 
@@ -165,7 +165,7 @@ def test_fly_path_without_wingbeats_gets_the_tasks_time_budget(tmp_path, monkeyp
         seen.append(task.max_wingbeats)
         raise Stop
 
-    monkeypatch.setattr(tasks, "fly_task", capture)
+    monkeypatch.setattr(fly_command, "fly_task", capture)
     f = tmp_path / "arc.csv"
     np.savetxt(f, _arc(n=5), delimiter=",", header="x,y,z", comments="")
     for extra in ([], ["--wingbeats", "7"]):
@@ -396,7 +396,7 @@ def test_the_bank_asked_is_the_recovery_curves_bank_lead_seconds_on(lead):
 
 
 @pytest.mark.parametrize("cap", [45.0, 50.0, 60.0])
-def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys):
+def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys, tmp_path):
     # the bird 3 m left of a straight path: the recovery curve's bank at the wingbeat's end
     # (lead 0, dt = 0.1 s, u = 0.1) is atan(a_lat / g) with a = (12u - 6) 3 = -14.4 m/s^2 across
     # and v = (7, (6u^2 - 6u) 3) = (7, -1.62): a_lat = 14.4 * 7 / 7.185 = 14.03 m/s^2, a bank
@@ -417,12 +417,20 @@ def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys):
     for bad in (5.0, 85.0, float("nan")):
         with pytest.raises(InputError, match="largest bank"):
             PathTarget(Trim(np.zeros(8)), path, max_bank_deg=bad)
-    assert main(["eval", "--scenario", "sinusoid-sharp", "--max-bank", "90"]) == 2
+    assert main(["eval", "--scenario", "sinusoid-sharp", "--config",
+                 _config(tmp_path, "[path]\nmax_bank_deg = 90")]) == 2
     err = capsys.readouterr().err.strip()
-    assert "--max-bank must be 10..80 deg" in err and "\n" not in err
+    assert "max_bank_deg must be 10..80 deg" in err and "\n" not in err
 
 
-def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
+def _config(tmp_path, text: str) -> str:
+    """A control configuration file holding ``text``."""
+    f = tmp_path / "control.toml"
+    f.write_text(text + "\n")
+    return str(f)
+
+
+def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys, tmp_path):
     from flapsim.bird.control.targets import Trim
     from flapsim.bird.tasks.path_control import PathTarget
 
@@ -430,14 +438,16 @@ def test_a_bank_lead_outside_the_look_ahead_is_a_one_line_error(capsys):
     for bad in (-0.1, 1.5, float("nan")):
         with pytest.raises(InputError, match="bank lead"):
             PathTarget(Trim(np.zeros(8)), path, bank_lead_s=bad)
-    assert main(["eval", "--scenario", "figure8-level", "--bank-lead", "2"]) != 0
-    assert "--bank-lead must be 0..1 s" in capsys.readouterr().err
+    assert main(["eval", "--scenario", "figure8-level", "--config",
+                 _config(tmp_path, "[path]\nbank_lead_s = 2")]) != 0
+    assert "bank_lead_s must be 0..1 s" in capsys.readouterr().err
     for bad in (-1.0, 100.0, float("nan")):
         with pytest.raises(InputError, match="angle of attack per g"):
             PathTarget(Trim(np.zeros(8)), path, aoa_per_g_deg=bad)
-    assert main(["eval", "--scenario", "figure8-level", "--aoa-per-g", "-5"]) != 0
+    assert main(["eval", "--scenario", "figure8-level", "--config",
+                 _config(tmp_path, "[path]\naoa_per_g_deg = -5")]) != 0
     err = capsys.readouterr().err.strip()
-    assert "--aoa-per-g must be 0..90 deg" in err and "\n" not in err
+    assert "aoa_per_g_deg must be 0..90 deg" in err and "\n" not in err
     assert main(["eval", "--scenario", "figure8-level", "--speed", "1"]) != 0
     err = capsys.readouterr().err.strip()
     assert "--speed must be 3..12 m/s" in err and "\n" not in err
@@ -516,11 +526,12 @@ def test_the_time_allowed_follows_the_speeds_asked():
         PathTarget(trim, path).flight_time(wing_load_factor=1.0)
 
 
-def test_turn_g_options_get_one_line_errors(capsys):
-    for args, msg in ((["--turn-g", "0.9"], "--turn-g must be 0"),
-                      (["--speed-first", "2"], "--speed-first must be 0..1"),
-                      (["--turn-g", "1.3", "--turn-speed-floor", "9"], "--turn-speed-floor must be")):
-        assert main(["eval", "--scenario", "figure8-level", *args]) != 0
+def test_turn_g_options_get_one_line_errors(capsys, tmp_path):
+    for text, msg in (("turn_load_factor = 0.9", "turn_load_factor must be 0"),
+                      ("climb_per_speed_deficit = 2", "climb_per_speed_deficit must be 0..1"),
+                      ("turn_load_factor = 1.3\nturn_speed_floor = 2", "turn_speed_floor must be")):
+        config = _config(tmp_path, "[path]\n" + text)
+        assert main(["eval", "--scenario", "figure8-level", "--config", config]) != 0
         err = capsys.readouterr().err.strip()
         assert msg in err and "\n" not in err
 

@@ -6,10 +6,8 @@ import numpy as np
 import pytest
 
 from flapsim.bird.body.model import Dove
+from flapsim.bird.control.config import DEFAULT_REFINE, DEFAULT_REFINE_GOAL, MAX_REFINE
 from flapsim.bird.control.controller import (
-    DEFAULT_REFINE,
-    DEFAULT_REFINE_GOAL,
-    MAX_REFINE,
     REFINE_COMPONENTS,
     WingbeatController,
     correction_goal,
@@ -172,7 +170,7 @@ def test_a_tight_circle_is_followed_with_the_simulated_corrections_and_lost_with
     assert with_.metrics["max_path_distance"] < 3.0
 
 
-def test_refine_options_are_checked(flight, capsys):
+def test_refine_options_are_checked(flight, capsys, tmp_path):
     for bad in (-1, MAX_REFINE + 1, 1.5, True):
         with pytest.raises(InputError, match="refine"):
             load_controller(flight, refine=bad)
@@ -185,11 +183,13 @@ def test_refine_options_are_checked(flight, capsys):
     assert load_controller(flight, refine_goal="reachable").refine_goal == "reachable"
     # no request clip, no goal clip: reachable is the full target, and says so
     assert load_controller(flight, clip_request=0.0, refine_goal="reachable").refine_goal == "full"
+    config = tmp_path / "refine.toml"
+    config.write_text(f"[controller]\nrefine = {MAX_REFINE + 1}\n")
     for command in (["eval", "--scenario", "figure8"], ["fly", "--controller", "learned"]):
         capsys.readouterr()
-        assert main([*command, "--refine", str(MAX_REFINE + 1)]) == 2
+        assert main([*command, "--config", str(config)]) == 2
         err = capsys.readouterr().err.strip()
-        assert f"--refine must be 0..{MAX_REFINE}" in err and "\n" not in err
+        assert f"refine must be 0..{MAX_REFINE}" in err and "\n" not in err
 
 
 def test_cruise_with_corrections_holds_level_from_a_roll_error(flight, trim):

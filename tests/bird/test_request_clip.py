@@ -70,9 +70,11 @@ def test_bad_options_are_one_line_errors():
 
 
 def test_eval_and_fly_options_reach_the_controller(monkeypatch):
-    """--clip-request / --state-weight: the controller a scenario flies has them, and a
-    conditioned regression is given the state the wingbeat starts from."""
+    """The configuration's clip_request / state_weight: the controller a scenario flies has
+    them, and a conditioned regression is given the state the wingbeat starts from."""
     import flapsim.bird.tasks.flight_tasks as tasks
+    import flapsim.scenarios.flight as flight_scenarios
+    from flapsim.bird.control.config import ControllerConfig
     from flapsim.bird.control.controller import start_cruise
     from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
     from flapsim.bird.flight import cycle
@@ -90,9 +92,10 @@ def test_eval_and_fly_options_reach_the_controller(monkeypatch):
         fl.close()
         return "flown"
 
-    monkeypatch.setattr(tasks, "fly_task", fake_fly_task)
+    monkeypatch.setattr(flight_scenarios, "fly_task", fake_fly_task)
     task = tasks.Task(paths.straight(20.0))
-    assert _fly_task(task, EvalOptions(clip_request=0.02, state_weight=0.5), record=False) == "flown"
+    tuned = ControllerConfig(clip_request=0.02, state_weight=0.5)
+    assert _fly_task(task, EvalOptions(controller=tuned), record=False) == "flown"
     ctl = seen["ctl"]
     reg = ctl.regressor
     assert reg.clip_request == 0.02 and reg.context_weight == 0.5 and reg.conditioned
@@ -126,32 +129,28 @@ def test_eval_and_fly_options_reach_the_controller(monkeypatch):
         fl.close()
 
 
-@pytest.mark.parametrize("cmd, args, fragment", [
-    ("eval", ["--clip-request", "0.5"], "--clip-request must be"),
-    ("eval", ["--clip-request", "nan"], "--clip-request must be"),
-    ("eval", ["--state-weight", "-1"], "--state-weight must be"),
-    ("fly", ["--controller", "learned", "--clip-request", "-0.1"], "--clip-request must be"),
+@pytest.mark.parametrize("cmd, line, fragment", [
+    ("eval", "clip_request = 0.5", "clip_request must be"),
+    ("eval", "clip_request = nan", "clip_request must be"),
+    ("eval", "state_weight = -1", "state_weight must be"),
+    ("fly", "clip_request = -0.1", "clip_request must be"),
 ])
-def test_cli_regression_options_bad_values(capsys, cmd, args, fragment):
+def test_cli_regression_options_bad_values(capsys, tmp_path, cmd, line, fragment):
     from flapsim.cli.main import main
 
-    code = main([cmd, *args])
+    config = tmp_path / "bad.toml"
+    config.write_text(f"[controller]\n{line}\n")
+    code = main([cmd, *(["--controller", "learned"] if cmd == "fly" else []), "--config", str(config)])
     err = capsys.readouterr().err.strip()
     assert code == 2 and fragment in err and "\n" not in err, err
 
 
 def test_cli_defaults_are_the_library_default():
-    import argparse
+    from flapsim.bird.control.config import ControllerConfig
 
-    from flapsim.cli.commands import eval as eval_cmd
-    from flapsim.cli.commands import fly as fly_cmd
-    from flapsim.scenarios import EvalOptions
-
-    for mod in (eval_cmd, fly_cmd):
-        p = argparse.ArgumentParser()
-        mod.add_arguments(p)
-        assert p.get_default("clip_request") == DEFAULT_CLIP_REQUEST and p.get_default("state_weight") == 0
-    assert EvalOptions().clip_request == DEFAULT_CLIP_REQUEST and EvalOptions().state_weight == 0
+    for feathers in ("rigid", "modal"):
+        c = ControllerConfig.for_dove(feathers)
+        assert c.clip_request == DEFAULT_CLIP_REQUEST and c.state_weight == 0
 
 
 def test_the_conditioned_fit_is_affine_in_the_start_state_too():

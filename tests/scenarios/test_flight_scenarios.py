@@ -250,7 +250,7 @@ def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
 def test_every_flight_scenario_runs_its_quick_variant_to_a_verdict(tmp_path):
     # every runner end to end (short variants, two worker processes): each gives a verdict
     # and its own numbers; 'failed' (a runner's error) or 'diverged' would be a bug here
-    from flapsim.cli.commands.eval import execute
+    from flapsim.scenarios.runner import execute
 
     names = scenarios.names(family="flight", all_only=True)
     opts = scenarios.EvalOptions(quick=True, plots_dir=str(tmp_path))
@@ -352,43 +352,66 @@ def test_what_a_path_asks_per_wingbeat_is_the_arc_over_the_radius():
 
 
 def test_eval_options_reach_every_flight(monkeypatch):
-    """--speed, --bank-lead and --aoa-per-g replace the task's own values in the task flown
-    (None: the path target's or the dove's defaults, applied in fly_task)."""
+    """--speed and the path configuration replace the task's own values in the task flown
+    (without a configuration: the dove's defaults); the controller configuration reaches
+    fly_task."""
     import dataclasses
 
-    import flapsim.bird.tasks.flight_tasks as tasks_mod
-    from flapsim.bird.tasks.flight_tasks import Task
+    import flapsim.scenarios.flight as flight_scenarios
+    from flapsim.bird.control.config import ControllerConfig
+    from flapsim.bird.tasks.config import PathControlConfig
+    from flapsim.bird.tasks.flight_tasks import DEFAULT_BANK_LEAD_S, Task
     from flapsim.bird.tasks.path_shapes import straight
     from flapsim.scenarios import EvalOptions
     from flapsim.scenarios.flight import _fly_task
 
     seen = []
-    monkeypatch.setattr(tasks_mod, "fly_task", lambda task, *a, **kw: seen.append(task))
+    monkeypatch.setattr(flight_scenarios, "fly_task",
+                        lambda task, *a, **kw: seen.append((task, kw["config"])))
     task = Task(straight(10.0))
     _fly_task(task, EvalOptions(), record=False)
-    _fly_task(task, EvalOptions(speed=5.5, bank_lead_s=0.1, aoa_per_g_deg=30.0, max_bank_deg=60.0),
-              record=False)
-    assert (seen[0].speed, seen[0].bank_lead_s, seen[0].aoa_per_g_deg, seen[0].max_bank_deg) == (
-        7.0, None, None, None)
-    assert (seen[1].speed, seen[1].bank_lead_s, seen[1].aoa_per_g_deg, seen[1].max_bank_deg) == (
-        5.5, 0.1, 30.0, 60.0)
-    assert dataclasses.replace(seen[1], speed=7.0, bank_lead_s=None, aoa_per_g_deg=None,
-                               max_bank_deg=None) == task
+    path = PathControlConfig(bank_lead_s=0.1, aoa_per_g_deg=30.0, max_bank_deg=50.0)
+    tuned = ControllerConfig(refine=1)
+    _fly_task(task, EvalOptions(speed=5.5, path_control=path, controller=tuned), record=False)
+    (first, none), (second, config) = seen
+    assert none is None and config is tuned
+    assert (first.speed, first.bank_lead_s, first.max_bank_deg, first.turn_speed_floor) == (
+        7.0, DEFAULT_BANK_LEAD_S["rigid"], 60.0, 6.5)
+    assert (second.speed, second.bank_lead_s, second.aoa_per_g_deg, second.max_bank_deg) == (
+        5.5, 0.1, 30.0, 50.0)
+    # the lowest speed asked for a turn is never above the speed asked
+    assert second.turn_speed_floor == 5.5
+    assert dataclasses.replace(second, speed=7.0, **{f: getattr(task, f) for f in (
+        "bank_lead_s", "aoa_per_g_deg", "max_bank_deg", "climb_per_speed_deficit",
+        "turn_load_factor", "turn_speed_floor")}) == task
 
 
 def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
     """Every Table I run is the paper's protocol (sec. 7): k fixed, the bank of the wingbeat's
     end, P0 every wingbeat, the trim's angle of attack in turns, the speed asked everywhere,
     independent speed and height loops; what the run was asked otherwise is overridden."""
-    from flapsim.cli.commands.eval import _paper_protocol
+    from flapsim.bird.control.config import ControllerConfig
+    from flapsim.bird.tasks.config import PathControlConfig
     from flapsim.scenarios import EvalOptions
+    from flapsim.scenarios.runner import paper_protocol
 
-    o = EvalOptions(k_dense=100, bank_lead_s=0.3, carry=0.4, aoa_per_g_deg=30.0, speed=6.0,
-                    turn_load_factor=1.25, climb_per_speed_deficit=0.1, refine=2, max_bank_deg=60.0)
-    _paper_protocol(o)
-    assert (o.k_dense, o.bank_lead_s, o.carry, o.aoa_per_g_deg, o.speed, o.turn_load_factor,
-            o.climb_per_speed_deficit, o.refine, o.max_bank_deg) == (0, 0.0, 0.0, 0.0, None, 0.0,
-                                                                     0.0, 0, None)
+    asked = EvalOptions(controller=ControllerConfig(k_dense_share=0.01, carry=0.4, refine=2,
+                                                    clip_request=0.05),
+                        path_control=PathControlConfig(bank_lead_s=0.3, aoa_per_g_deg=30.0,
+                                                       turn_load_factor=1.25,
+                                                       climb_per_speed_deficit=0.1,
+                                                       max_bank_deg=50.0),
+                        speed=6.0)
+    for o in (asked, EvalOptions(), EvalOptions(feathers="modal")):
+        p = paper_protocol(o)
+        c, t = p.controller, p.path_control
+        assert (c.k_dense_share, c.carry, c.refine, t.bank_lead_s, t.aoa_per_g_deg, p.speed,
+                t.turn_load_factor, t.climb_per_speed_deficit) == (0.0, 0.0, 0, 0.0, 0.0, None,
+                                                                    0.0, 0.0)
+        # the dove's own bank cap
+        assert t.max_bank_deg == PathControlConfig.for_dove(o.feathers).max_bank_deg
+    # what the protocol does not fix stays as asked
+    assert paper_protocol(asked).controller.clip_request == 0.05
 
 
 def test_wilsons_interval_is_its_closed_form():

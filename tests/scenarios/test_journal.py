@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from flapsim.bird.control.config import ControllerConfig
 from flapsim.core.errors import InputError
 from flapsim.scenarios import EvalOptions
 from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path
@@ -85,7 +86,8 @@ def test_a_journal_is_of_the_runs_asked_and_their_files(tmp_path):
     assert fingerprint(runs, "1.0") == f
     assert fingerprint(runs, "1.1") != f  # another flapsim
     assert fingerprint([("wind-gusts", runs[0][1])], "1.0") != f  # another scenario
-    assert fingerprint([("wind-steady", EvalOptions(db=str(db), quick=True, refine=0))], "1.0") != f
+    refine0 = EvalOptions(db=str(db), quick=True, controller=ControllerConfig(refine=0))
+    assert fingerprint([("wind-steady", refine0)], "1.0") != f
     db.write_bytes(b"two")  # the same database path, other samples
     assert fingerprint(runs, "1.0") != f
 
@@ -136,9 +138,9 @@ def test_a_run_written_when_ctrl_c_lands_is_kept(tmp_path, monkeypatch):
 def test_a_run_whose_result_never_came_back_is_an_error_not_a_shorter_table(monkeypatch):
     # an executor that returns fewer results than runs (as one did when two chunks finished
     # in the same wait): eval must say so in one line, not print a table without the run
-    from flapsim.cli.commands.eval import execute
     from flapsim.core.parallel import ChunkExecutor, WorkerError
     from flapsim.scenarios import EvalOptions
+    from flapsim.scenarios.runner import execute
 
     monkeypatch.setattr(ChunkExecutor, "map_unordered", lambda self, chunks: iter(()))
     with pytest.raises(WorkerError, match="no result came back for figure8") as e:

@@ -65,19 +65,30 @@ class ControllerConfig:
     """The wingbeat controller's tuning (defaults: the rigid dove's; :meth:`for_dove`)."""
 
     carry: float = DEFAULT_CARRY["rigid"]
-    """Share 0..1 of the last wingbeat's change from the reference wingbeat that the next one starts from (0: the reference every wingbeat, the paper's; docs/flight.md)."""
+    """Share 0..1 of the last wingbeat's change from the reference wingbeat that the next one
+    starts from (0: the reference every wingbeat, the paper's; docs/flight.md)."""
     refine: int = DEFAULT_REFINE["rigid"]
-    """Simulated corrections per wingbeat, 0..5: where the answer would end short of the target it is asked again for the shortfall and the nearest is flown (0: flown as answered, the paper's; docs/flight.md)."""
+    """Simulated corrections per wingbeat, 0..5: where the answer would end short of the target
+    it is asked again for the shortfall and the nearest is flown (0: flown as answered, the
+    paper's; docs/flight.md)."""
     refine_goal: str = DEFAULT_REFINE_GOAL["rigid"]
-    """What the corrections aim at and rank by: "full", the target itself, or "reachable", the target clipped as clip_request clips the request (measured in docs/flight.md)."""
+    """What the corrections aim at and rank by: "full", the target itself, or "reachable", the
+    target clipped as clip_request clips the request (measured in docs/flight.md)."""
     lookahead: str = "auto"
-    """Simulate the next wingbeat's reference in a second thread while the corrections run: "on", "off" or "auto" (where it can and two cores are free); the same flight to the bit, ~1.2x faster."""
+    """Simulate the next wingbeat's reference in a second thread while the corrections run:
+    "on", "off" or "auto" (where it can and two cores are free); the same flight to the bit,
+    ~1.2x faster."""
     k_dense_share: float = DEFAULT_K_DENSE_SHARE["rigid"]
-    """LWLR's neighbours where a request lies among densely packed samples, as a share of the samples searched, at most k, growing to k where they are sparse (0: always k, the paper's fixed neighbourhood; k-NN: always 0; docs/flight.md)."""
+    """LWLR's neighbours where a request lies among densely packed samples, as a share of the
+    samples searched, at most k, growing to k where they are sparse (0: always k, the paper's
+    fixed neighbourhood; k-NN: always 0; docs/flight.md)."""
     clip_request: float = DEFAULT_CLIP_REQUEST
-    """The regression clips each component of a requested state change to the [q, 1-q] quantiles of the database's, a share 0 <= q < 0.5 (0: no clip, the paper's; docs/flight.md)."""
+    """The regression clips each component of a requested state change to the [q, 1-q] quantiles
+    of the database's, a share 0 <= q < 0.5 (0: no clip, the paper's; docs/flight.md)."""
     state_weight: float = 0.0
-    """Weight 0..1000 of the wingbeat's start state beside dS in the regression's choice of neighbours (0: dS only, the paper's eq. 3; for databases that mix cruise and disturbed pre-states)."""
+    """Weight 0..1000 of the wingbeat's start state beside dS in the regression's choice of
+    neighbours (0: dS only, the paper's eq. 3; for databases that mix cruise and disturbed pre-
+    states)."""
 
     def __post_init__(self) -> None:
         c = self.carry

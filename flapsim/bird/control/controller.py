@@ -12,8 +12,8 @@ controller that uses them, a controlled flight and the loading of a database.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -138,12 +138,14 @@ class WingbeatController:
     is the same to the bit, the wall time shorter on two free cores."""
     refine_goal: str = "full"
     """What the corrections aim at and rank by (:data:`REFINE_GOALS`): ``full``, the target
-    (the default here; :func:`load_controller` uses :data:`DEFAULT_REFINE_GOAL`), or
+    (the default here; :func:`load_controller` uses its configuration's), or
     ``reachable``, the target with each component's change from P0's end clipped as the
     request is (needs the regression's ``clip_request``). Far from what any wingbeat can do
     in one beat (the forward speed a slowing dove is asked, 2-4 m/s short), the unreachable
     part of the shortfall outweighs the rest in the ranking, and the wingbeat that keeps a
     little more speed is flown over the one that holds the bank or the pitch asked."""
+    config: ControllerConfig | None = None
+    """The configuration :func:`load_controller` built it from (provenance), None otherwise."""
     _last: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -417,12 +419,12 @@ def make_lookahead(flight: DoveFlight, mode: str, refine: int, predict: str
     """The :class:`~flapsim.bird.control.lookahead.ReferenceLookahead` ``mode`` asks for
     (:func:`load_controller`'s ``lookahead``), or None."""
     if mode not in LOOKAHEAD_MODES:
-        raise InputError(f"--lookahead must be one of {', '.join(LOOKAHEAD_MODES)}, got {mode!r}")
+        raise InputError(f"lookahead must be one of {', '.join(LOOKAHEAD_MODES)}, got {mode!r}")
     if mode == "off":
         return None
     why = None
     if not refine:
-        why = "it runs beside the simulated corrections: use --refine 1 or more"
+        why = "it runs beside the simulated corrections: set refine = 1 or more"
     elif predict != "simulate":
         why = f"it simulates S0 ahead: use --predict simulate, not {predict}"
     elif flight.aero.flow.has_python:
@@ -435,18 +437,15 @@ def make_lookahead(flight: DoveFlight, mode: str, refine: int, predict: str
     if why is None:
         return ReferenceLookahead(flight)
     if mode == "on":
-        raise InputError(f"--lookahead on: {why}")
+        raise InputError(f"lookahead on: {why}")
     return None
 
 
 def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: int | None = None,
                     weights: tuple[float, float, float] = PAPER_WEIGHTS,
                     predict: str = "simulate", predict_every: int = 4,
-                    mirror: bool = True, state_weight: float = 0.0,
-                    clip_request: float = DEFAULT_CLIP_REQUEST,
-                    k_dense: int | None = None, carry: float | None = None,
-                    refine: int | None = None, refine_goal: str | None = None,
-                    lookahead: str = "off") -> WingbeatController:
+                    mirror: bool = True, config: ControllerConfig | None = None,
+                    **overrides) -> WingbeatController:
     """A controller over a database (default: the bundled one of ``flight``'s dove, rigid or
     modal feathers) built for ``flight``'s model;
     a database of another model, or a foreign/corrupt file, is a one-line error.
@@ -455,51 +454,41 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     (:func:`mirror_samples`); ``k`` (default :data:`DEFAULT_K_SHARE`: 2 % for LWLR, 0.5 %
     for k-NN) counts among both.
 
-    ``k_dense`` > 0 (LWLR): neighbours where the request lies among densely packed samples,
-    growing to ``k`` where they are sparse (:class:`Regressor`); 0: always ``k``, the paper's
-    fixed neighbourhood; None (default): :data:`DEFAULT_K_DENSE_SHARE` of the samples searched
-    for LWLR (docs/flight_log.md, "A neighbourhood that follows the samples' density"), 0 for k-NN.
-
-    ``state_weight`` > 0: the neighbours are chosen by dS and by the wingbeat's start state
-    (the samples' S field; :class:`Regressor`'s ``context_weight``); 0 (default): by dS only,
-    the paper's eq. 3. ``clip_request`` q > 0 (default :data:`DEFAULT_CLIP_REQUEST`):
-    requests are clipped to the [q, 1 - q] quantiles of the database's dS first
-    (:class:`Regressor`); 0: not clipped, the paper's.
-
-    ``carry`` (None: :data:`DEFAULT_CARRY` for the flight's dove, 0 with ``predict=
-    "regression"``): the share of the last wingbeat's change the next one starts from
-    (:attr:`WingbeatController.carry`; 0: P0 every wingbeat, the paper's).
-
-    ``refine`` (None: :data:`DEFAULT_REFINE` for the flight's dove): simulated corrections
-    per wingbeat (:attr:`WingbeatController.refine`; 0: the regression's answer is flown as
-    it is, the paper's). ``refine_goal`` (None: :data:`DEFAULT_REFINE_GOAL` for the
-    flight's dove): what the corrections aim at (:attr:`WingbeatController.refine_goal`).
+    ``config`` (:class:`~flapsim.bird.control.config.ControllerConfig`; None: the defaults of
+    ``flight``'s dove, :meth:`ControllerConfig.for_dove`, without the look-ahead thread)
+    tunes the rest: the carry (:attr:`WingbeatController.carry`), the simulated corrections
+    and their goal (:attr:`WingbeatController.refine`, :attr:`WingbeatController.refine_goal`),
+    the look-ahead, and the regression's dense neighbourhood (LWLR only: ``k_dense_share`` of
+    the samples searched, at most ``k``; :class:`Regressor`'s ``k_dense``), request clip and
+    start-state weight (:class:`Regressor`'s ``clip_request``, ``context_weight``).
+    ``overrides``: fields of the config replaced (``carry=0.3``, as
+    :func:`dataclasses.replace`).
 
     ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
     ``coarse`` flies it every wingbeat at :data:`COARSE_RATE_HZ` (:class:`CoarsePredictor`);
     ``regression`` predicts it from the database's (S, S0) pairs and simulates P0 only
-    every ``predict_every``-th wingbeat (:class:`S0Predictor`).
+    every ``predict_every``-th wingbeat (:class:`S0Predictor`); it predicts P0's end only,
+    so its defaults carry nothing and a carry is an error.
 
-    ``lookahead`` (:data:`LOOKAHEAD_MODES`): ``on`` simulates the next wingbeat's reference
-    in a second thread while the corrections run (:attr:`WingbeatController.lookahead`: the
-    same flight, less wall time on two free cores), and is a one-line error where it cannot
-    (no corrections, S0 not simulated, a Python flow field); ``auto`` turns it on where it
-    can and two CPU cores are free to this process; ``off`` (default) never."""
+    The config's ``lookahead`` (:data:`LOOKAHEAD_MODES`): ``on`` simulates the next
+    wingbeat's reference in a second thread while the corrections run
+    (:attr:`WingbeatController.lookahead`: the same flight, less wall time on two free
+    cores), and is a one-line error where it cannot (no corrections, S0 not simulated, a
+    Python flow field); ``auto`` turns it on where it can and two CPU cores are free to this
+    process; ``off`` never."""
     if predict not in PREDICT_MODES:
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
-    if carry is None:
-        # the default carries nothing where S0 is predicted for P0 alone
-        carry = 0.0 if predict == "regression" else DEFAULT_CARRY.get(flight.dove.feathers, 0.0)
-    carry = float(carry)
-    if not (np.isfinite(carry) and 0.0 <= carry <= 1.0):
-        raise InputError(f"--carry must be a share 0..1, got {carry}")
-    if carry and predict == "regression":
-        raise InputError("--carry needs S0 simulated (--predict simulate or coarse): --predict "
+    if config is None:
+        # a library call runs no second thread unless asked (the command line's default is auto)
+        config = dataclasses.replace(ControllerConfig.for_dove(flight.dove.feathers, predict),
+                                     lookahead="off")
+    config = dataclasses.replace(config, **overrides)
+    if config.carry and predict == "regression":
+        raise InputError("carry needs S0 simulated (--predict simulate or coarse): --predict "
                          "regression predicts the reference wingbeat P0's end only")
     if predict == "coarse" and flight.modal is not None and not flight.modal.engine:
         raise InputError("--predict coarse needs rigid feathers or modal ones integrated by the "
                          "engine (ModalParams(integration='engine'), the default)")
-
     path = db_path or bundled_database_path(flight.dove.feathers)
     db = load_database(path, model_hash=flight.dove.hash(), require_finalized=True)
     for name in ("dS", "dP"):
@@ -515,29 +504,25 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     P0 = np.asarray(prov.get("P0", with_tail_bias(p0(), FlightConfig.tail_bias_deg)), float)
     dS, dP = db.arrays["dS"], db.arrays["dP"]
     S = None
-    if state_weight:
+    if config.state_weight:
         if "S" not in db.arrays:
             raise InputError(f"{path} has no 'S' field: a state weight needs the samples' start states")
         S = db.arrays["S"]
     if mirror:
         dS, dP = mirror_samples(dS, dP, P0)
         S = None if S is None else np.vstack([S, S * MIRROR_STATE])
-    if k_dense is None:
-        share = DEFAULT_K_DENSE_SHARE.get(flight.dove.feathers, 0.0) if method == "lwlr" else 0.0
-        # the default never exceeds k (a user's smaller --k); an explicit value is checked
-        k_dense = min(default_k(len(dS), share), resolve_k(len(dS), k, method)) if share > 0 else 0
-    elif k_dense < 0 or (k_dense and method != "lwlr"):
-        raise InputError(f"--k-dense must be 0 (off) or >= 1 with --method lwlr, got {k_dense}")
-    reg = Regressor(dS, dP, k=k, weights=weights, method=method, context=S, context_weight=state_weight,
-                    clip_request=clip_request, k_dense=int(k_dense))
-    refine = DEFAULT_REFINE.get(flight.dove.feathers, 0) if refine is None else refine
-    if refine_goal is None:
-        refine_goal = DEFAULT_REFINE_GOAL.get(flight.dove.feathers, "full")
+    share = config.k_dense_share if method == "lwlr" else 0.0
+    # never more than k (a user's smaller --k)
+    k_dense = min(default_k(len(dS), share), resolve_k(len(dS), k, method)) if share > 0 else 0
+    reg = Regressor(dS, dP, k=k, weights=weights, method=method, context=S,
+                    context_weight=config.state_weight, clip_request=config.clip_request,
+                    k_dense=int(k_dense))
+    refine_goal = config.refine_goal
     if refine_goal == "reachable" and reg.dS_lo is None:
         refine_goal = "full"  # no clip, nothing to clip the goal to: the same thing
-    # it checks refine and refine_goal
-    ctl = WingbeatController(flight, reg, P0, carry=carry, refine=refine, refine_goal=refine_goal)
-    ctl.lookahead = make_lookahead(flight, lookahead, refine, predict)
+    ctl = WingbeatController(flight, reg, P0, carry=float(config.carry), refine=config.refine,
+                             refine_goal=refine_goal, config=config)
+    ctl.lookahead = make_lookahead(flight, config.lookahead, config.refine, predict)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
     elif predict == "coarse":

@@ -44,15 +44,22 @@ class PathControlConfig:
     max_bank_deg: float = DEFAULT_MAX_BANK_DEG["rigid"]
     """The largest bank the path target asks, 10..80 deg (the paper gives none; docs/flight.md)."""
     bank_lead_s: float = DEFAULT_BANK_LEAD_S["rigid"]
-    """The path target asks the bank its recovery curve has this long after the wingbeat's end, 0..1 s (0: at the end, the paper's; docs/flight.md)."""
+    """The path target asks the bank its recovery curve has this long after the wingbeat's end,
+    0..1 s (0: at the end, the paper's; docs/flight.md)."""
     aoa_per_g_deg: float = DEFAULT_AOA_PER_G_DEG["rigid"]
-    """More angle of attack asked per g of a turn's load factor, 0..90 deg (0: the level trim's, the paper's; docs/flight.md)."""
+    """More angle of attack asked per g of a turn's load factor, 0..90 deg (0: the level trim's,
+    the paper's; docs/flight.md)."""
     climb_per_speed_deficit: float = DEFAULT_CLIMB_PER_SPEED_DEFICIT["rigid"]
-    """Speed first: the climb asked drops this much per m/s of airspeed below the speed asked, 0..1 rad s/m (0: independent speed and height loops, the paper's; docs/flight_log.md, "Speed first")."""
+    """Speed first: the climb asked drops this much per m/s of airspeed below the speed asked,
+    0..1 rad s/m (0: independent speed and height loops, the paper's; docs/flight_log.md, "Speed
+    first")."""
     turn_load_factor: float = float(PathTarget.turn_load_factor)
-    """Slow down ahead of turns that would need more than this load factor at the speed asked, to the speed where they need it, 0 or above 1 and at most 5 g (0: never, the paper's; docs/flight_log.md, "Slowing for tight turns")."""
+    """Slow down ahead of turns that would need more than this load factor at the speed asked,
+    to the speed where they need it, 0 or above 1 and at most 5 g (0: never, the paper's;
+    docs/flight_log.md, "Slowing for tight turns")."""
     turn_speed_floor: float = float(PathTarget.turn_speed_floor)
-    """With turn_load_factor, the lowest speed asked for a turn, 3..12 m/s, never above the speed asked (the bundled database's dove loses 6 m circles at 6 m/s)."""
+    """With turn_load_factor, the lowest speed asked for a turn, 3..12 m/s, never above the
+    speed asked (the bundled database's dove loses 6 m circles at 6 m/s)."""
 
     def __post_init__(self) -> None:
         def check(ok: bool, key: str, what: str) -> None:
@@ -84,7 +91,7 @@ class PathControlConfig:
     @classmethod
     def from_toml(cls, path: str | Path, base: PathControlConfig | None = None) -> PathControlConfig:
         """``base`` (default: the rigid dove's) with the fields of ``path``'s ``[path]`` table
-        (errors as :meth:`ControllerConfig.from_toml <flapsim.bird.control.config.ControllerConfig.from_toml>`)."""
+        (errors as :meth:`flapsim.bird.control.config.ControllerConfig.from_toml`)."""
         return from_table(base or cls(), read_toml(path, TABLES)["path"], f"{path} [path]")
 
     def target_settings(self, speed: float) -> dict:

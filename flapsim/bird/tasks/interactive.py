@@ -35,15 +35,8 @@ from flapsim.bird.control.controller import start_cruise
 from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import FlightConfig
-from flapsim.bird.tasks.flight_tasks import (
-    PushSpec,
-    Task,
-    build_flight,
-    default_aoa_per_g,
-    default_bank_lead,
-    default_climb_per_speed_deficit,
-    default_max_bank,
-)
+from flapsim.bird.tasks.config import PathControlConfig
+from flapsim.bird.tasks.flight_tasks import PushSpec, Task, build_flight
 from flapsim.bird.tasks.path_control import PathTarget, start_on_path
 from flapsim.bird.tasks.path_shapes import straight
 from flapsim.fluid.flow import ROW, Gust
@@ -111,12 +104,14 @@ class Command:
 
 
 def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = None,
-                path=None, launch=None, feathers: str = "rigid", **options) -> dict:
+                path=None, launch=None, feathers: str = "rigid",
+                path_control: PathControlConfig | None = None, **options) -> dict:
     """Fly the dove under the keys for ``seconds`` of simulated time (or until the window
     closes); returns what happened (keys, headings, distance). ``feathers``: ``rigid`` or
-    ``modal`` (``db``: by default the bundled database of that dove); ``options``: the
-    regression's (:func:`~flapsim.bird.control.controller.load_controller`: ``mirror``,
-    ``clip_request``, ...)."""
+    ``modal`` (``db``: by default the bundled database of that dove); ``path_control``: the
+    path target's tuning (None: the dove's defaults); ``options``: the controller's
+    (:func:`~flapsim.bird.control.controller.load_controller`: ``mirror``, ``predict``,
+    ``config``, ...)."""
 
     # a gust primitive that is inert (zero amplitude) until Delete re-packs it in place
     fl, ctl = build_flight(Task(path if path is not None else _dummy_path(),
@@ -129,11 +124,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         if path is not None:
             start_on_path(fl, ctl.P0, path, cmd.speed)
-            target = PathTarget(trim, path, speed=cmd.speed,
-                                aoa_per_g_deg=default_aoa_per_g(feathers),
-                                bank_lead_s=default_bank_lead(feathers),
-                                climb_per_speed_deficit=default_climb_per_speed_deficit(feathers),
-                                max_bank_deg=default_max_bank(feathers))
+            tuning = path_control or PathControlConfig.for_dove(feathers)
+            target = PathTarget(trim, path, speed=cmd.speed, **tuning.target_settings(cmd.speed))
         else:
             start_cruise(fl, ctl.P0, cfg)
             target = CruiseTarget(trim, altitude=cfg.height, speed=cmd.speed)

@@ -6,12 +6,17 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 from pathlib import Path
 
-from flapsim.cli.commands.fly import add_regression_arguments
+from flapsim import scenarios
+from flapsim.bird.tasks.path_control import load_path
+from flapsim.cli.options import add_controller_arguments, controller_options, writable_dir
 from flapsim.core.errors import InputError
-from flapsim.core.validate import add_input_arg
+from flapsim.core.parallel import usable_cores
+from flapsim.core.validate import add_input_arg, require_gl
+from flapsim.scenarios import runner
+from flapsim.scenarios.journal import journal_path
+from flapsim.scenarios.runner import TABLE1_K_PERCENT, TABLE1_SCENARIO, TABLE1_SIZES
 
 HELP = ("evaluate controllers on named scenarios (figure of eight, pushes, forest, flock, "
         "swimming tasks, ...): metrics table, JSON, plots, videos")
@@ -21,11 +26,7 @@ EXIT_STATUS = ("  1    a scenario failed or its animal got lost (the table and J
 SEED_HELP = ("random seed of the scenarios that draw (forest trees, flock perturbations) and of "
              "--starts' speed changes (default 0)")
 
-TABLE1_SIZES = (2000, 5000, 10000, 20000)
-TABLE1_K_PERCENT = (2.0, 1.0, 0.5, 0.3)
 DEFAULT_SCENARIO = "figure8-level"
-TABLE1_SCENARIO = "figure8"
-"""The paper's Table I path: a figure of eight with ascending and descending turns."""
 
 
 def push_note(table: list[dict]) -> str:
@@ -43,31 +44,6 @@ def push_note(table: list[dict]) -> str:
     return "; ".join(parts)
 
 
-def check_regression_options(args: argparse.Namespace) -> None:
-    """--clip-request, --state-weight, --k-dense, --carry and --refine (fly, eval, view):
-    one-line errors."""
-    import math
-
-    q, w = args.clip_request, args.state_weight
-    if not (math.isfinite(q) and 0.0 <= q < 0.5):
-        raise InputError(f"--clip-request must be a share 0 <= Q < 0.5, got {q}")
-    if not (math.isfinite(w) and 0.0 <= w <= 1e3):
-        raise InputError(f"--state-weight must be 0..1000, got {w}")
-    kd = getattr(args, "k_dense", None)
-    if kd is not None and kd < 0:
-        raise InputError(f"--k-dense must be 0 (off) or >= 1, got {kd}")
-    c = getattr(args, "carry", None)
-    if c is not None and not (math.isfinite(c) and 0.0 <= c <= 1.0):
-        raise InputError(f"--carry must be a share 0..1, got {c}")
-    if c and getattr(args, "predict", "simulate") == "regression":
-        raise InputError("--carry needs S0 simulated (--predict simulate or coarse)")
-    n = getattr(args, "refine", None)
-    from flapsim.bird.control.controller import MAX_REFINE
-
-    if n is not None and not 0 <= n <= MAX_REFINE:
-        raise InputError(f"--refine must be 0..{MAX_REFINE} simulated corrections per wingbeat, got {n}")
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default=None, metavar="NAME",
                    help=f"scenario name, several comma-separated, 'all', or one family's part of "
@@ -75,40 +51,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--list", action="store_true", help="list the scenarios and exit")
     add_input_arg(p, "--path", metavar="FILE",
                   help="fly a path file of yours (CSV with header x,y,z, or JSON list of [x,y,z])")
-    add_input_arg(p, "--db", metavar="DB", help="controller database (default: the bundled one)")
-    p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
-                   help="regression of the wingbeat controller (default lwlr; knn: the paper's)")
-    p.add_argument("--k", type=int, default=None,
-                   help="neighbours (default: 2%% of the samples searched for lwlr, 0.5%% for knn)")
-    add_regression_arguments(p)
-    p.add_argument("--max-bank", type=float, default=None, metavar="DEG",
-                   help="flight: the largest bank the path target asks, 10..80 deg (default 60 "
-                        "for the rigid dove, 45 with modal feathers; the paper gives none; at 45 "
-                        "sinusoid-sharp steers no wider than the capture set to the right, see "
-                        "docs/flight.md)")
-    p.add_argument("--bank-lead", type=float, default=None, metavar="S",
-                   help="flight: the path target asks the bank its recovery curve has S seconds "
-                        "after the wingbeat's end (default 0.2 for the rigid dove, 0.3 with modal "
-                        "feathers; 0: at the end, the paper's; "
-                        "--table1 uses 0)")
+    add_controller_arguments(p)
     p.add_argument("--speed", type=float, default=None, metavar="M_S",
                    help="flight: the speed asked of every flight, m/s (default 7, the paper's; the "
                         "bundled database was sampled at 7: slower flight needs a database sampled "
                         "there, see docs/flight.md)")
-    p.add_argument("--aoa-per-g", type=float, default=None, metavar="DEG",
-                   help="flight: the path target asks DEG more angle of attack per g of a turn's "
-                        "load factor (default 40 for rigid feathers, 0 for modal ones; 0: the "
-                        "paper's; see docs/flight.md)")
-    p.add_argument("--speed-first", type=float, default=None, metavar="K",
-                   help="flight: the climb asked drops K rad per m/s of airspeed below the speed "
-                        "asked (default 0: independent speed and height loops, the paper's; "
-                        "see docs/flight_log.md, \"Speed first\")")
-    p.add_argument("--turn-g", type=float, default=None, metavar="N",
-                   help="flight: slow down ahead of turns that would need more than N g at the "
-                        "speed asked, to the speed where they need N (0: never, the paper's; "
-                        "default 0; see docs/flight_log.md, \"Slowing for tight turns\")")
-    p.add_argument("--turn-speed-floor", type=float, default=None, metavar="M_S",
-                   help="flight: with --turn-g, the lowest speed asked for a turn (default 6.5 m/s)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
@@ -146,20 +93,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="--table1: database sizes to use instead of the paper's, comma-separated")
 
 
-def _dir(flag: str, value: str | None) -> str | None:
-    if value is None:
-        return None
-    p = Path(value)
-    if p.exists() and not p.is_dir():
-        raise InputError(f"{flag} {value} is a file; name a folder (it is created if missing)")
-    parent = p if p.exists() else p.parent
-    if not parent.exists():
-        raise InputError(f"{flag} {value}: folder {parent} does not exist (create it first)")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{flag} {value}: folder {parent} is not writable")
-    return str(p)
-
-
 def _wider(m: dict) -> str:
     """The table's word on the steering range against the capture's, per side."""
     w = m.get("steering_wider_than_capture")
@@ -172,13 +105,9 @@ def _wider(m: dict) -> str:
 
 
 def _names(args: argparse.Namespace) -> list[str]:
-    from flapsim import scenarios
-
     if args.path:
         if args.scenario not in (None, "path"):
             raise InputError("--path flies your path file (scenario 'path'); drop --scenario")
-        from flapsim.bird.tasks.path_control import load_path
-
         # a bad file is the user's input error (exit 2, one line), as for fly and view, not a
         # failed run in the table after the workers have started
         load_path(args.path)
@@ -198,67 +127,35 @@ def _names(args: argparse.Namespace) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> dict:
-    from flapsim import scenarios
-
     if args.list:
         return _list()
-    if args.k is not None and args.k < 1:
-        raise InputError(f"--k must be >= 1, got {args.k}")
     if args.workers is not None and not (1 <= args.workers <= 4096):
         raise InputError(f"--workers must be 1..4096, got {args.workers}")
-    plots, video = _dir("--plots", args.plots), _dir("--video", args.video)
+    plots, video = writable_dir("--plots", args.plots), writable_dir("--video", args.video)
     if video:
-        from flapsim.core.validate import require_gl
-
         require_gl()
-    check_regression_options(args)
-    if args.bank_lead is not None and not (math.isfinite(args.bank_lead) and 0.0 <= args.bank_lead <= 1.0):
-        raise InputError(f"--bank-lead must be 0..1 s (within the 1 s look-ahead), got {args.bank_lead}")
-    speed = getattr(args, "speed", None)
+    controller, path_control = controller_options(args)
+    speed = args.speed
     if speed is not None and not (math.isfinite(speed) and 3.0 <= speed <= 12.0):
         raise InputError(f"--speed must be 3..12 m/s, got {speed}")
-    max_bank = getattr(args, "max_bank", None)
-    if max_bank is not None and not (math.isfinite(max_bank) and 10.0 <= max_bank <= 80.0):
-        raise InputError(f"--max-bank must be 10..80 deg, got {max_bank}")
-    aoa = getattr(args, "aoa_per_g", None)
-    if aoa is not None and not (math.isfinite(aoa) and 0.0 <= aoa <= 90.0):
-        raise InputError(f"--aoa-per-g must be 0..90 deg, got {aoa}")
-    speed_first = getattr(args, "speed_first", None)
-    if speed_first is not None and not (math.isfinite(speed_first) and 0.0 <= speed_first <= 1.0):
-        raise InputError(f"--speed-first must be 0..1 rad per m/s, got {speed_first}")
-    turn_g = getattr(args, "turn_g", None)
-    if turn_g is not None and not (math.isfinite(turn_g) and (turn_g == 0.0 or 1.0 < turn_g <= 5.0)):
-        raise InputError(f"--turn-g must be 0 (no slowing) or above 1 and at most 5 g, got {turn_g}")
-    floor = getattr(args, "turn_speed_floor", None)
-    if floor is not None and not (math.isfinite(floor) and 3.0 <= floor <= (speed or 7.0)):
-        raise InputError(f"--turn-speed-floor must be 3 m/s..the speed asked ({speed or 7.0:g}), "
-                         f"got {floor}")
-    opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, k_dense=args.k_dense,
-                                 carry=args.carry, refine=args.refine,
-                                 refine_goal=args.refine_goal,
-                                 mirror=args.mirror,
-                                 clip_request=args.clip_request, state_weight=args.state_weight,
-                                 predict=args.predict, lookahead=args.lookahead,
-                                 bank_lead_s=args.bank_lead,
-                                 speed=speed, aoa_per_g_deg=aoa, turn_load_factor=turn_g,
-                                 max_bank_deg=max_bank,
-                                 climb_per_speed_deficit=speed_first,
-                                 turn_speed_floor=floor, layers=args.layers,
+    opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, mirror=args.mirror,
+                                 predict=args.predict, controller=controller,
+                                 path_control=path_control, speed=speed, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick)
     if args.table1:
         if args.starts != 1:
             raise InputError("--table1 flies one start per database; drop --starts")
         return _table1(args, opts)
-    runs = start_runs(_names(args), opts, args)
-    runs = lookahead_runs(runs, args.lookahead, args.workers, args.backend)
+    runs = runner.start_runs(_names(args), opts, args.starts, args.start_jitter, args.seed)
+    runs = runner.lookahead_runs(runs, args.workers, args.backend)
     if args.db and any(scenarios.get(n).family == "flight" for n, _ in runs):
-        _check_db_model(args.db, args.feathers)
+        runner.check_database(args.db, args.feathers)
     for d in (plots, video):
         if d:
             Path(d).mkdir(exist_ok=True)
-    journal = open_journal(args, runs)
-    results = execute(runs, args.workers, args.backend, args.address, journal)
+    journal = runner.open_journal(args.json, runs)
+    results = runner.execute(runs, args.workers, args.backend, args.address, journal, say=print)
     for r, (_, o) in zip(results, runs, strict=True):
         if args.starts > 1:
             r["start_speed_change_m_s"] = o.start_speed_change
@@ -273,175 +170,34 @@ def run(args: argparse.Namespace) -> dict:
     return out
 
 
-def start_runs(names: list[str], opts, args: argparse.Namespace) -> list[tuple[str, object]]:
-    """``(scenario, options)`` for each scenario and start (``--starts``, ``--start-jitter``):
-    the start as it is, then its forward speed changed (:func:`flapsim.scenarios.start_speed_changes`);
-    only the first start writes plots and videos (they would overwrite each other)."""
-    import dataclasses
-
-    from flapsim import scenarios
-
-    n, jitter = args.starts, args.start_jitter
-    if not 1 <= n <= 1000:
-        raise InputError(f"--starts must be 1..1000, got {n}")
-    if not (math.isfinite(jitter) and 0.0 < jitter <= 0.1):
-        raise InputError(f"--start-jitter must be above 0 and at most 0.1 m/s (a perturbation far "
-                         f"below the flight's speed), got {jitter}")
-    if n == 1:
-        return [(name, opts) for name in names]
-    other = [name for name in names if scenarios.get(name).family != "flight"]
-    if other:
-        raise InputError(f"--starts perturbs the dove's start: flight scenarios only, not "
-                         f"{', '.join(other)} (--scenario flight: the flight part of 'all')")
-    runs = []
-    for name in names:
-        for i, dv in enumerate(scenarios.start_speed_changes(n, jitter, args.seed)):
-            o = dataclasses.replace(opts, start_speed_change=dv)
-            if i:
-                o = dataclasses.replace(o, plots_dir=None, video_dir=None)
-            runs.append((name, o))
-    return runs
-
-
 def print_spread(results: list[dict], n: int, jitter: float, seed: int) -> dict:
     """Completion over the starts of each scenario (``--starts``), with Wilson's 95 % interval
-    and the spread of the largest distance from the path; the JSON's ``starts``."""
-    from flapsim.scenarios import completion_interval
-
-    by: dict[str, list[dict]] = {}
-    for r in results:
-        by.setdefault(r["scenario"], []).append(r)
-    rows = {}
+    and the spread of the largest distance from the path (:func:`flapsim.scenarios.runner.
+    spread`); the JSON's ``starts``."""
+    rows = runner.spread(results)
     print(f"\ncompleted over {n} starts (the first as it is, the others up to {jitter * 1e3:g} mm/s "
           f"faster or slower; seed {seed}):")
-    for name, rs in by.items():
-        k = sum(r["status"] == "completed" for r in rs)
-        lo, hi = completion_interval(k, len(rs))
-        far = [r.get("metrics", {}).get("max_path_distance") for r in rs]
-        far = [f for f in far if f is not None]
-        rows[name] = {"completed": k, "starts": len(rs), "rate": k / len(rs),
-                      "rate_95": [lo, hi],
-                      "max_path_distance_range_m": [min(far), max(far)] if far else None}
-        span = f"; largest distance {min(far):.2f}-{max(far):.2f} m" if far else ""
-        print(f"  {name:<22} {k:>4} of {len(rs):<4} ({100 * lo:.0f}-{100 * hi:.0f} % at 95 %){span}")
+    for name, row in rows.items():
+        k, m = row["completed"], row["starts"]
+        lo, hi = row["rate_95"]
+        far = row["max_path_distance_range_m"]
+        span = f"; largest distance {far[0]:.2f}-{far[1]:.2f} m" if far else ""
+        print(f"  {name:<22} {k:>4} of {m:<4} ({100 * lo:.0f}-{100 * hi:.0f} % at 95 %){span}")
     return {"n": n, "jitter_m_s": jitter, "seed": seed, "scenarios": rows}
-
-
-def _check_db_model(db: str, feathers: str) -> None:
-    """A database of another dove is a one-line error before any worker starts (each run
-    would fail alike)."""
-    from flapsim.bird.body.model import Dove
-    from flapsim.bird.control.database import read_header
-
-    have, want = read_header(db).get("model_hash"), Dove.load(feathers=feathers).hash()
-    if have != want:
-        other = "modal" if feathers == "rigid" else "rigid"
-        hint = (f"fly it with --feathers {other}" if have == Dove.load(feathers=other).hash()
-                else f"train one for this dove: flapsim train --feathers {feathers} --out NEW.db")
-        raise InputError(f"{db} was built for model {have}, not the {feathers}-feather dove "
-                         f"({want}): {hint}")
-
-
-def open_journal(args: argparse.Namespace, runs: list[tuple[str, object]]):
-    """The journal of ``--json PATH``'s finished runs (:mod:`flapsim.scenarios.journal`),
-    or None without a file to write (no ``--json``, or ``--json -``)."""
-    from flapsim.core import environment
-    from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path
-
-    if not args.json or args.json == "-":
-        return None
-    # the packages too: the same runs flown with another numpy may end otherwise (environment)
-    return RunJournal(journal_path(args.json), fingerprint(runs, environment.tag()), len(runs))
 
 
 def finished(args: argparse.Namespace) -> None:
     """Called once ``--json PATH`` is written: the finished runs' journal goes."""
-    from flapsim.scenarios.journal import journal_path
-
     if args.json and args.json != "-" and not args.list:
         journal_path(args.json).unlink(missing_ok=True)
 
 
 def resume_hint(args: argparse.Namespace) -> str:
     """What an interrupted eval tells the user about its finished runs."""
-    from flapsim.scenarios.journal import journal_path
-
     if args.json and args.json != "-" and journal_path(args.json).exists():
         return (f"; the finished runs are kept in {journal_path(args.json)}: run the same "
                 "command again to resume")
     return ""
-
-
-def lookahead_runs(runs: list[tuple[str, object]], mode: str, workers: int | None,
-                   backend: str = "local") -> list[tuple[str, object]]:
-    """``--lookahead`` for each run: ``auto`` becomes ``on`` only where the local runs leave
-    this machine a second core per worker (one scenario on two cores, say), else ``off``: the
-    suite's runs already fill the cores, and a third thread would slow them."""
-    import dataclasses
-
-    from flapsim.bird.control.controller import usable_cores
-
-    if mode == "auto":
-        n = workers or max(1, min(len(runs), usable_cores()))
-        n = min(n, len(runs)) if runs else 1
-        mode = "on" if backend == "local" and usable_cores() >= 2 * n else "off"
-        # "on" is an error where a run cannot look ahead (--refine 0, say): auto stays quiet
-        mode = "auto" if mode == "on" else "off"
-    return [(name, dataclasses.replace(o, lookahead=mode) if hasattr(o, "lookahead") else o)
-            for name, o in runs]
-
-
-def execute(runs: list[tuple[str, object]], workers: int | None, backend: str = "local",
-            address: str | None = None, journal=None) -> list[dict]:
-    """Run ``(scenario name, options)`` pairs on the training executor; results in order.
-    ``journal`` (a :class:`~flapsim.scenarios.journal.RunJournal`): the runs it holds are
-    taken from it, not flown again, and each run flown is added to it as it finishes."""
-    from tqdm import tqdm
-
-    from flapsim.core.parallel import ChunkExecutor
-    from flapsim.scenarios import EvalWorker, RunsConfig
-
-    n = len(runs)
-    out: list[dict | None] = [None] * n
-    if journal is not None:
-        done = journal.load()
-        if journal.stale:
-            print(f"{journal.path} holds the runs of another eval (other options, databases, "
-                  "path files or flapsim version): starting afresh")
-        for i, r in done.items():
-            out[i] = r
-        if done:
-            print(f"resuming: {len(done)} of {n} runs finished before, read from {journal.path}")
-        journal.open(done)
-    from flapsim.scenarios import get
-
-    todo = [i for i in range(n) if out[i] is None]
-    # dearest first: the longest run must not be the one that starts last
-    order = sorted(todo, key=lambda i: -get(runs[i][0]).cost)
-    try:
-        if order:
-            workers = workers or max(1, min(len(order), os.cpu_count() or 1))
-            workers = min(workers, len(order))
-            with ChunkExecutor(EvalWorker, RunsConfig(list(runs)), workers=workers, backend=backend,
-                               address=address) as ex, \
-                    tqdm(total=n, initial=n - len(order), desc="scenarios", unit="run") as bar:
-                for chunk in ex.map_unordered([(i, i + 1) for i in order]):
-                    for i, r in chunk:
-                        out[i] = r
-                        if journal is not None:
-                            journal.add(i, r)
-                        bar.set_postfix_str(f"{r['scenario']}: {r['status']}")
-                        bar.update(1)
-            missing = [runs[i][0] for i in order if out[i] is None]
-            if missing:  # never a table that silently lacks a run
-                from flapsim.core.parallel import WorkerError
-
-                raise WorkerError(f"no result came back for {', '.join(missing)}; run the same "
-                                  "command again to resume")
-    finally:
-        if journal is not None:
-            journal.close()
-    return [r for r in out if r is not None]
 
 
 def _fmt(v, digits: int = 3) -> str:
@@ -533,8 +289,6 @@ def print_table(results: list[dict]) -> None:
 
 
 def _list() -> dict:
-    from flapsim import scenarios
-
     rows = []
     names = scenarios.names()
     width = max(len(n) for n in names)  # the columns line up whatever the longest name
@@ -547,49 +301,12 @@ def _list() -> dict:
 
 # -- Table I --------------------------------------------------------------------------------
 
-def _bundled_seed(feathers: str = "rigid") -> int:
-    from flapsim.bird.control.controller import bundled_database_path
-    from flapsim.bird.control.database import load_database
-
-    return int(load_database(bundled_database_path(feathers), require_finalized=True).header["seed"])
-
-
-def _is_bundled_run(config, n: int) -> bool:
-    """True when the bundled database holds exactly ``n`` samples of this configuration's
-    run (``train`` still checks the copy's header before accepting it)."""
-    from flapsim.bird.control.controller import bundled_database_path
-    from flapsim.bird.control.database import load_database
-    from flapsim.bird.training.sampling import SampleWorker
-    from flapsim.bird.training.train import run_header
-
-    db = load_database(bundled_database_path(config.feathers), require_finalized=True)
-    ident = run_header(config, SampleWorker, "dove-phase1")
-    return db.n == n and all(db.header.get(k) == ident.get(k)
-                             for k in ("kind", "worker", "config_class", "config", "seed"))
-
-
-def _paper_protocol(o) -> None:
-    """Table I's runs fly the paper's controller whatever else was asked: k fixed (the sweep is
-    over k itself), the bank of the wingbeat's end, P0 every wingbeat, the trim's angle of
-    attack in turns, the speed asked everywhere, independent speed and height loops and the
-    regression's answer flown as it is, with the dove's default bank cap (Table I's figure of
-    eight flies the same at 45 and 60 deg: docs/flight_log.md, "A 60 deg bank by default")."""
-    o.k_dense, o.bank_lead_s, o.carry, o.refine, o.max_bank_deg = 0, 0.0, 0.0, 0, None
-    o.aoa_per_g_deg, o.speed, o.turn_load_factor, o.climb_per_speed_deficit = 0.0, None, 0.0, 0.0
-
-
-def _table1(args: argparse.Namespace, opts) -> dict:
-    """Train (or reuse) the phase-1 databases and fly the scenario with each."""
-    import copy
-
-    from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
-    from flapsim.bird.training.train import train
-
+def _table1(args: argparse.Namespace, opts: scenarios.EvalOptions) -> dict:
+    """Train (or reuse) the phase-1 databases and fly the scenario with each
+    (:mod:`flapsim.scenarios.runner`'s Table I)."""
     name = args.scenario or TABLE1_SCENARIO
     if "," in name or name in ("all", "path"):
         raise InputError("--table1 flies one scenario: --scenario NAME")
-    from flapsim import scenarios
-
     if scenarios.get(name).family != "flight":
         raise InputError(f"--table1 needs a flight scenario, got {name!r}")
     sizes = TABLE1_SIZES
@@ -601,51 +318,19 @@ def _table1(args: argparse.Namespace, opts) -> dict:
                 from None
         if any(not (100 <= s <= 10**6) for s in sizes):
             raise InputError(f"--sizes must each be 100..1e6, got {args.sizes}")
-    cache = Path(_dir("--cache", args.cache))
+    cache = Path(writable_dir("--cache", args.cache))
     cache.mkdir(exist_ok=True)
     # the bundled database's sampling (phase 1, pre-states within 10 deg) and, unless asked
     # otherwise, its seed: one draw of the databases, whose spread docs/flight_log.md measures
-    seed = (args.table1_seed if getattr(args, "table1_seed", None) is not None
-            else _bundled_seed(opts.feathers))
-    config = SamplingConfig(seed=seed, pitch_deg=10.0, roll_deg=10.0, feathers=opts.feathers)
-    dbs = {}
-    for n in sorted(set(sizes)):
-        out = cache / f"phase1_{n}.db"
-        if not out.exists() and _is_bundled_run(config, n):
-            # the bundled database is this very run: copy it rather than train it again
-            import shutil
-
-            from flapsim.bird.control.controller import bundled_database_path
-
-            shutil.copyfile(bundled_database_path(config.feathers), out)
-            print(f"database of {n} samples: {out} (the bundled one)")
-        else:
-            print(f"database of {n} samples: {out}")
-        train(config, out, n, SampleWorker, workers=args.workers or (os.cpu_count() or 1),
-              backend=args.backend, address=args.address, kind="dove-phase1")
-        dbs[n] = out
-    runs, labels = [], []
-    # k is a share of the samples the regression searches: with the mirror images, twice the
-    # database's
-    per = 2 if opts.mirror else 1
-    for n in sizes:
-        o = copy.copy(opts)
-        o.db, o.k = str(dbs[n]), max(1, round(0.005 * per * n))
-        _paper_protocol(o)
-        runs.append((name, o))
-        labels.append({"samples": n, "k_percent": 0.5, "k": o.k})
-    base = 10000 if 10000 in dbs else max(dbs)
-    for kp in TABLE1_K_PERCENT:
-        if kp == 0.5:
-            continue
-        o = copy.copy(opts)
-        o.db, o.k = str(dbs[base]), max(1, round(kp / 100 * per * base))
-        _paper_protocol(o)
-        runs.append((name, o))
-        labels.append({"samples": base, "k_percent": kp, "k": o.k})
-    runs = lookahead_runs(runs, args.lookahead, args.workers, args.backend)
-    journal = open_journal(args, runs)
-    results = execute(runs, args.workers, args.backend, args.address, journal)
+    seed = (args.table1_seed if args.table1_seed is not None
+            else runner.bundled_seed(opts.feathers))
+    dbs = runner.table1_databases(sizes, cache, seed, opts.feathers,
+                                  workers=args.workers or usable_cores(),
+                                  backend=args.backend, address=args.address, say=print)
+    runs, labels = runner.table1_runs(name, opts, dbs, sizes)
+    runs = runner.lookahead_runs(runs, args.workers, args.backend)
+    journal = runner.open_journal(args.json, runs)
+    results = runner.execute(runs, args.workers, args.backend, args.address, journal, say=print)
     print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}; "
           f"databases of sampling seed {seed}): per-wingbeat means")
     head = (f"{'samples':>8} {'k %':>5} {'k':>5} {'status':<10} {'Ep m':>7} {'Er rad':>7} "
@@ -665,4 +350,5 @@ def _table1(args: argparse.Namespace, opts) -> dict:
     return {"table1": rows, "scenario": name, "seed": seed, "failed": failed,
             "exit_status": 1 if failed else 0,
             "resumed_runs": journal.resumed if journal is not None else 0,
-            "databases": {str(k): str(v) for k, v in dbs.items()}}
+            "databases": {str(k): str(v) for k, v in dbs.items()},
+            "options": opts.to_dict()}

@@ -7,58 +7,30 @@ import dataclasses
 
 import numpy as np
 
+from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import (
+    BaseController,
+    cruise_metrics,
+    database_table,
+    fly_controlled,
+    load_controller,
+    start_cruise,
+)
+from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, flight_metrics, fly
+from flapsim.bird.flight.power import power_budget
+from flapsim.bird.flight.video import dove_video
+from flapsim.bird.flight.wingbeat import p0, with_tail_bias
+from flapsim.bird.tasks.flight_tasks import Task, fly_task
+from flapsim.bird.tasks.path_control import load_path
+from flapsim.cli.options import add_controller_arguments, controller_options
 from flapsim.core.errors import InputError
+from flapsim.core.io import save_npz
 from flapsim.core.validate import add_input_arg, add_output_arg, quantity
 
 SEED_HELP = "accepted for uniformity (stored in --out); flight is deterministic, --seed changes nothing"
 HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat controller holding "
         "altitude, speed and heading) and report speed, deviations, lift/weight")
-
-
-def add_regression_arguments(p: argparse.ArgumentParser) -> None:
-    """The learned controller's options beyond --method/--k (``fly``, ``eval``, ``view``)."""
-    p.add_argument("--k-dense", type=int, default=None, metavar="N",
-                   help="LWLR's neighbours where a request lies among densely packed samples, "
-                        "growing to --k where they are sparse (default: 0.5%% of the samples "
-                        "searched for rigid feathers, off for modal ones; 0: always --k, the "
-                        "paper's fixed neighbourhood; see docs/flight.md)")
-    p.add_argument("--no-mirror", dest="mirror", action="store_false",
-                   help="the regression searches the database's samples only, not also their mirror "
-                        "images (the default searches both: the dove is symmetric)")
-    p.add_argument("--clip-request", type=float, default=0.02, metavar="Q",
-                   help="the regression clips each component of a requested state change to the "
-                        "[Q, 1-Q] quantiles of the database's (default 0.02; 0: no clip, the paper's): "
-                        "a request far outside the samples is otherwise extrapolated (see docs/flight.md)")
-    p.add_argument("--state-weight", type=float, default=0.0, metavar="W",
-                   help="the regression chooses neighbours by dS and, with weight W, by the "
-                        "wingbeat's start state (default 0: dS only, the paper's; for databases "
-                        "that mix cruise and disturbed pre-states, see docs/flight.md)")
-    p.add_argument("--carry", type=float, default=None, metavar="C",
-                   help="share of the last wingbeat's change from the reference wingbeat that the "
-                        "next one starts from (default 0.4 for rigid feathers, 0 for modal ones; "
-                        "0: the reference every wingbeat, the paper's; see docs/flight.md)")
-    p.add_argument("--refine", type=int, default=None, metavar="N",
-                   help="simulate the regression's wingbeat before flying it and, where it would "
-                        "end short of the target, ask again for the shortfall, N times; the wingbeat "
-                        "that ends nearest the target is flown (default: the dove's, see docs/flight.md; "
-                        "0: flown as answered, the paper's). Each costs one wingbeat's simulation")
-    p.add_argument("--refine-goal", choices=("reachable", "full"), default=None,
-                   help="what --refine's corrections aim at and rank by: the target itself "
-                        "(full, the default) or the target with each change clipped as "
-                        "--clip-request clips the request (reachable; measured in docs/flight.md)")
-    p.add_argument("--lookahead", choices=("auto", "on", "off"), default="auto",
-                   help="simulate the next wingbeat's reference wingbeat in a second thread while "
-                        "--refine's corrections run: the same flight to the bit, ~1.2x faster on two "
-                        "free cores (auto, the default: where it can and two cores are free; for "
-                        "'flapsim eval' only when the runs leave a core per run free; see docs/flight.md)")
-    p.add_argument("--predict", choices=("simulate", "coarse", "regression"), default="simulate",
-                   help="how the learned controller finds S0, where the reference wingbeat would "
-                        "end: simulate it every wingbeat (default; the paper), simulate it at a "
-                        "coarser step (coarse: 1600 Hz against 2400, ~1.25x faster, the same "
-                        "verdicts on the figures of eight and in wind) or predict it from the "
-                        "database's (S, S0) pairs, simulating only some wingbeats to correct its "
-                        "bias (regression, EXPERIMENTAL: 1.4-1.6x faster; loses the rising figure "
-                        "of eight on 3 of 7 asked speeds)")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -73,15 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="base: repeat the reference wingbeat (default); learned: the k-NN wingbeat "
                         "controller over a trained database, holding the start altitude, --speed "
                         "and heading")
-    add_input_arg(p, "--db", metavar="DB", help="controller database (default: the bundled one)")
-    p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
-                   help="regression of the learned controller: lwlr (default; locally weighted "
-                        "linear regression) or knn (the paper's k-NN average, which does not hold "
-                        "this dove level: see docs/flight.md)")
-    p.add_argument("--k", type=int, default=None,
-                   help="neighbours of the regression (default: 2%% of the samples searched for "
-                        "lwlr, 0.5%% for knn)")
-    add_regression_arguments(p)
+    add_controller_arguments(p)
     p.add_argument("--roll-deg", type=float, default=0.0,
                    help="initial roll error, deg (+ right wing down)")
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
@@ -109,12 +73,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> dict:
-    from flapsim.bird.body.model import Dove
-    from flapsim.bird.flight.dove_flight import FlightConfig, flight_metrics, fly
-    from flapsim.core.io import save_npz
-
     if args.path:
-        from flapsim.bird.tasks.path_control import load_path
 
         args.flight_path = load_path(args.path)  # one-line DataFileError before any work
         # without --wingbeats the path is flown for the tasks' time budget in seconds, as eval
@@ -133,11 +92,7 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--size must be 16..4096 pixels each way, got {args.size!r}")
     if not np.isfinite(args.roll_deg) or abs(args.roll_deg) > 90:
         raise InputError(f"--roll-deg must be within -90..90, got {args.roll_deg}")
-    if args.k is not None and args.k < 1:
-        raise InputError(f"--k must be >= 1, got {args.k}")
-    from flapsim.cli.commands.eval import check_regression_options
-
-    check_regression_options(args)
+    args.controller_config, args.path_control = controller_options(args)
     cfg = FlightConfig(speed=args.speed, pitch_deg=args.pitch_deg, tail_bias_deg=args.tail_bias_deg,
                        **({"table": args.table} if args.table else {}))
     if args.power:  # checked before anything is flown
@@ -180,7 +135,6 @@ def run(args: argparse.Namespace) -> dict:
     pr, rr = metrics["pitch_range_deg"], metrics["roll_range_deg"]
     print(f"  pitch {pr[0]:.1f}..{pr[1]:.1f} deg, roll {rr[0]:.1f}..{rr[1]:.1f} deg")
     if args.power:
-        from flapsim.bird.flight.power import power_budget
 
         skip = min(2, args.wingbeats - 1)  # the start's transient out, where there is more
         pw = power_budget(args.wingbeats, skip, config=cfg)
@@ -201,7 +155,6 @@ def run(args: argparse.Namespace) -> dict:
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        from flapsim.bird.flight.video import dove_video
 
         n = dove_video(dove, flight.qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
@@ -211,31 +164,16 @@ def run(args: argparse.Namespace) -> dict:
 
 def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     """Cruise under the learned controller (or the base one, from a rolled start)."""
-    from flapsim.bird.body.model import Dove
-    from flapsim.bird.control.controller import (
-        BaseController,
-        cruise_metrics,
-        fly_controlled,
-        load_controller,
-        start_cruise,
-    )
-    from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
-    from flapsim.bird.flight.dove_flight import DoveFlight
-    from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 
     dove = Dove.load(feathers=args.feathers)
     if args.controller == "learned" and not args.table:
-        from flapsim.bird.control.controller import database_table
 
         cfg = dataclasses.replace(cfg, table=database_table(args.db, args.feathers))
     fl = DoveFlight(dove, table=cfg.table)
     try:
         if args.controller == "learned":
-            ctl = load_controller(fl, args.db, method=args.method, k=args.k,
-                                  predict=getattr(args, "predict", "simulate"), mirror=args.mirror,
-                                  clip_request=args.clip_request, state_weight=args.state_weight,
-                                  k_dense=args.k_dense, carry=args.carry, refine=args.refine,
-                                  refine_goal=args.refine_goal, lookahead=args.lookahead)
+            ctl = load_controller(fl, args.db, method=args.method, k=args.k, predict=args.predict,
+                                  mirror=args.mirror, config=args.controller_config)
         else:
             ctl = BaseController(fl, with_tail_bias(p0(), cfg.tail_bias_deg))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
@@ -254,8 +192,8 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
         "db": str(args.db) if args.db else ("bundled" if args.controller == "learned" else None),
         "method": args.method if args.controller == "learned" else None,
         "mirror": args.mirror if args.controller == "learned" else None,
-        "clip_request": args.clip_request if args.controller == "learned" else None,
-        "state_weight": args.state_weight if args.controller == "learned" else None,
+        "controller_config": (args.controller_config.to_dict() if args.controller == "learned"
+                              else None),
         "predict": getattr(ctl, "predict", None),
         "k": getattr(getattr(ctl, "regressor", None), "k", None),
         "database_samples": getattr(getattr(ctl, "regressor", None), "n", None),
@@ -285,24 +223,22 @@ def _lookahead_counts(la) -> dict | None:
 
 def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     """Follow ``--path`` under the learned controller; the paper's Ep, Er, Eo, Ef."""
-    from flapsim.bird.tasks.flight_tasks import Task, fly_task
 
     path = args.flight_path
-    task = Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats, feathers=args.feathers)
-    predict = getattr(args, "predict", "simulate")
+    task = args.path_control.apply(Task(path, speed=cfg.speed, max_wingbeats=args.wingbeats,
+                                        feathers=args.feathers))
+    predict = args.predict
     r = fly_task(task, args.db, method=args.method, k=args.k, mirror=args.mirror, progress=True,
-                 record=bool(args.video or args.out), clip_request=args.clip_request,
-                 state_weight=args.state_weight, predict=predict, k_dense=args.k_dense,
-                 carry=args.carry, refine=args.refine, refine_goal=args.refine_goal,
-                 lookahead=args.lookahead)
+                 record=bool(args.video or args.out), predict=predict,
+                 config=args.controller_config)
     m = r.metrics
     completed = r.status == "completed"
     result = {
         "controller": "learned", "path": args.path, "path_length": path.length,
         "completed": completed, "status": r.status, "reason": r.reason,
         "progress": m["progress_m"], "model_hash": r.model_hash, "method": args.method, "mirror": args.mirror,
-        "clip_request": args.clip_request, "state_weight": args.state_weight,
-        "predict": predict,
+        "predict": predict, "controller_config": args.controller_config.to_dict(),
+        "path_control": args.path_control.to_dict(),
         "k": r.k, "database_samples": r.database_samples, "refine": r.refine,
         "refine_goal": r.refine_goal,
         "lookahead": None if r.lookahead is None else {"hits": r.lookahead[0], "misses": r.lookahead[1]},
@@ -323,8 +259,6 @@ def _run_path(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
 def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, height: int,
                         **extra: np.ndarray) -> None:
     """``--out`` / ``--video`` of a flown task (:class:`~flapsim.bird.tasks.flight_tasks.TaskResult`)."""
-    from flapsim.bird.body.model import Dove
-    from flapsim.core.io import save_npz
 
     if args.out:
         save_npz(args.out, positions=r.positions, quats=r.quats, times=r.times,
@@ -333,7 +267,6 @@ def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, h
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        from flapsim.bird.flight.video import dove_video
 
         n = dove_video(Dove.load(feathers=args.feathers), r.qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
@@ -344,7 +277,6 @@ def _write_outputs(args: argparse.Namespace, dove, flight, result: dict, width: 
                    **extra: np.ndarray) -> None:
     """``--out`` (per-wingbeat record and every step's positions, npz) and ``--video`` of a
     controlled flight; adds their paths to ``result``."""
-    from flapsim.core.io import save_npz
 
     if not (args.out or args.video):
         return
@@ -356,7 +288,6 @@ def _write_outputs(args: argparse.Namespace, dove, flight, result: dict, width: 
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        from flapsim.bird.flight.video import dove_video
 
         n = dove_video(dove, qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")

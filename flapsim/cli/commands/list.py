@@ -1,14 +1,27 @@
 """``flapsim list [WHAT]``: what can be named on the command line: strokes, coefficient
-tables, models and creatures, gaits, benchmarks and evaluation scenarios."""
+tables, models and creatures, gaits, benchmarks and evaluation scenarios; and the learned
+controller's default configuration (``flapsim list config``: a TOML file to copy and pass
+with ``--config``)."""
 
 from __future__ import annotations
 
 import argparse
 
-HELP = "list the strokes, coefficient tables, models, gaits, benchmarks and scenarios by name"
+from flapsim.bird.control.config import ControllerConfig
+from flapsim.bird.tasks.config import PathControlConfig, control_toml
+from flapsim.cli.commands.bench import BENCHES
+from flapsim.core.errors import FlapsimError
+from flapsim.fluid.coefficients import TABLES
+from flapsim.modal.creatures import CREATURES
+from flapsim.modal.gaits import GAITS, MODELS
+from flapsim.scenarios import get, names
+from flapsim.swim.strokes import STROKE_DIR, load_stroke
+
+HELP = ("list the strokes, coefficient tables, models, gaits, benchmarks and scenarios by name; "
+        "'list config' prints the controller's defaults as TOML for --config")
 SEED_HELP = "accepted for uniformity; listing uses no random numbers, --seed changes nothing"
 
-KINDS = ("strokes", "tables", "models", "gaits", "benchmarks", "scenarios")
+KINDS = ("strokes", "tables", "models", "gaits", "benchmarks", "scenarios", "config")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -17,9 +30,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def strokes() -> dict:
-    from flapsim.core.errors import FlapsimError
-    from flapsim.swim.strokes import STROKE_DIR, load_stroke
-
     out = {}
     for f in sorted(STROKE_DIR.glob("*.toml")):
         try:
@@ -32,8 +42,6 @@ def strokes() -> dict:
 
 
 def tables() -> dict:
-    from flapsim.fluid.coefficients import TABLES
-
     out = {}
     for name, make in TABLES.items():
         t = make()
@@ -43,9 +51,6 @@ def tables() -> dict:
 
 
 def models() -> dict:
-    from flapsim.modal.creatures import CREATURES
-    from flapsim.modal.gaits import MODELS
-
     out = {"dove": {"description": "collared dove, 14 actuated DOF, feathers (flapsim fly, train)"},
            "swimmer": {"description": "human swimmer, 16 boxes, 39 DOF (flapsim swim, sweep)"}}
     for name, spec in CREATURES.items():
@@ -58,24 +63,16 @@ def models() -> dict:
 
 
 def gaits() -> dict:
-    from flapsim.modal.gaits import GAITS
-
     return {g.name: {"description": f"{g.model}: {g.description}", "model": g.model}
             for g in GAITS.values()}
 
 
 def benchmarks() -> dict:
-    from flapsim.cli.commands.bench import BENCHES
-
     return {name: {"description": f"flapsim bench {name} ({target.split(':')[0]})"}
             for name, target in BENCHES.items()}
 
 
 def scenarios() -> dict:
-    try:
-        from flapsim.scenarios import get, names
-    except ImportError:  # the evaluation scenarios are not built in this version
-        return {}
     out = {}
     for name in names():
         try:
@@ -86,10 +83,22 @@ def scenarios() -> dict:
     return out
 
 
+def config() -> dict:
+    """The rigid dove's controller configuration, by table (the modal dove's defaults differ
+    where :func:`~flapsim.bird.tasks.config.control_toml` notes it)."""
+    return {"controller": ControllerConfig().to_dict(), "path": PathControlConfig().to_dict()}
+
+
 def run(args: argparse.Namespace) -> dict:
     kinds = KINDS if args.what == "all" else (args.what,)
     result = {}
     for kind in kinds:
+        if kind == "config":  # a file to copy, not a list of names
+            result[kind] = config()
+            if len(kinds) > 1:
+                print("config (flapsim list config; pass a copy with --config FILE.toml):")
+            print(control_toml(), end="")
+            continue
         items = globals()[kind]()
         result[kind] = items
         print(f"{kind}:" if items else f"{kind}: (none)")

@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import argparse
 
-from flapsim.cli.commands.fly import add_regression_arguments
+from flapsim.bird.tasks.interactive import view_flight
+from flapsim.bird.tasks.path_control import load_path
+from flapsim.cli.options import add_controller_arguments, controller_options
 from flapsim.core.errors import InputError
 from flapsim.core.validate import add_input_arg
+from flapsim.render.viewer import check_display
 
 HELP = ("steer the dove in MuJoCo's viewer: arrows steer and climb, double-click flies toward "
         "a point, PgUp/PgDn speed, Insert push, Delete gust, Home camera (needs a display or Xvfb)")
@@ -19,43 +22,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="simulated seconds before the viewer closes by itself (default 600)")
     add_input_arg(p, "--path", metavar="FILE",
                   help="follow and draw a path file (CSV header x,y,z or JSON list of [x,y,z])")
-    add_input_arg(p, "--db", metavar="DB", help="controller database (default: the bundled one)")
-    p.add_argument("--method", choices=("knn", "lwlr"), default="lwlr",
-                   help="regression of the wingbeat controller (default lwlr)")
-    p.add_argument("--k", type=int, default=None,
-                   help="neighbours (default: 2%% of the samples searched for lwlr, 0.5%% for knn)")
-    add_regression_arguments(p)
+    add_controller_arguments(p)
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="rigid feather plates (default) or modal feathers, drawn bent (their own "
                         "bundled database, or --db: one trained with flapsim train --feathers modal)")
 
 
 def run(args: argparse.Namespace) -> dict:
-    from flapsim.render.viewer import check_display
-
     if not (0.0 < args.seconds <= 86400.0):
         raise InputError(f"--seconds must be within 0..86400, got {args.seconds}")
-    if args.k is not None and args.k < 1:
-        raise InputError(f"--k must be >= 1, got {args.k}")
-    from flapsim.cli.commands.eval import check_regression_options
-
-    check_regression_options(args)
-    path = None
-    if args.path:
-        from flapsim.bird.tasks.path_control import load_path
-
-        path = load_path(args.path)
+    controller, path_control = controller_options(args)
+    path = load_path(args.path) if args.path else None
     check_display()
-    from flapsim.bird.tasks.interactive import view_flight
-
     r = view_flight(args.seconds, args.db, args.method, args.k, path, feathers=args.feathers,
-                    mirror=args.mirror, clip_request=args.clip_request, state_weight=args.state_weight,
-                    predict=args.predict, k_dense=args.k_dense, carry=args.carry,
-                    refine=args.refine, refine_goal=args.refine_goal, lookahead=args.lookahead)
+                    path_control=path_control, mirror=args.mirror, predict=args.predict,
+                    config=controller)
     print(f"dove viewer: {r['simulated_s']:.1f} s flown in {r['wall_s']:.1f} s ({r['status']}); "
           f"turned {r['heading_change_deg']:+.0f} deg, climbed {r['altitude_change_m']:+.1f} m, "
           f"{r['distance_m']:.0f} m flown; {len(r['events'])} key commands, {r['pushes']} pushes, "
           f"{r['gusts']} gusts")
     return {"viewer": r, "path": args.path, "db": args.db or "bundled", "method": args.method,
-            "mirror": args.mirror, "clip_request": args.clip_request, "state_weight": args.state_weight,
-            "predict": args.predict, "feathers": args.feathers}
+            "mirror": args.mirror, "predict": args.predict, "feathers": args.feathers,
+            "controller_config": controller.to_dict(), "path_control": path_control.to_dict()}
