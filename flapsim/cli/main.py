@@ -30,9 +30,12 @@ import threading
 import time
 from collections.abc import Sequence
 
+import mujoco
+
 from flapsim import __version__
 from flapsim.core import environment, interrupts
 from flapsim.core.errors import FlapsimError
+from flapsim.core.io import _jsonable, write_json
 from flapsim.core.validate import add_output_arg, check_outputs, guard_gl
 
 # Order is the order ``flapsim --help`` lists them in.
@@ -100,8 +103,6 @@ def _route_mujoco_warnings() -> None:
     ``MUJOCO_LOG.TXT`` in the working directory. In the CLI's own process send them to
     the log on stderr instead, each message text once. (Library users keep MuJoCo's
     default: the handler is process-wide, so flapsim does not set it on import.)"""
-    import mujoco
-
     seen: set[str] = set()
     log = logging.getLogger("flapsim.mujoco")
 
@@ -114,7 +115,7 @@ def _route_mujoco_warnings() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    guard_gl()  # before anything imports mujoco: a bad MUJOCO_GL must not break --help
+    guard_gl()  # also done on importing flapsim.cli, before mujoco: see flapsim/cli/__init__.py
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -127,8 +128,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
-    from flapsim.core.io import _jsonable, write_json
-
     _route_mujoco_warnings()
 
     to_stdout = args.json == "-"

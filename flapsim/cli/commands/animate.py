@@ -5,9 +5,20 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+
+import mujoco
+import numpy as np
 
 from flapsim.core.errors import InputError
 from flapsim.core.validate import add_input_arg, add_output_arg, quantity
+from flapsim.modal import animate as anim_mod
+from flapsim.modal.browser import ModeBrowser, contact_sheet
+from flapsim.modal.bvh import write_bvh
+from flapsim.modal.gaits import GAITS, MODELS, gait, head_orientation_error, plan_gait, resolve_model
+from flapsim.modal.heuristics import CATEGORY_NAMES
+from flapsim.modal.stiffness import tune_stiffness
+from flapsim.modal.video import render_poses
 
 HELP = "kinematic modal gait (walk, run, trot, ...) of the dog or human: npz, video, BVH"
 SEED_HELP = "accepted for uniformity; the animation is deterministic, --seed changes nothing"
@@ -52,8 +63,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _list() -> dict:
-    from flapsim.modal.gaits import GAITS
-
     print(f"{'gait':<14} {'model':<11} {'selection':<11} description")
     for g in GAITS.values():
         print(f"{g.name:<14} {g.model:<11} {g.selection:<11} {g.description}")
@@ -62,12 +71,6 @@ def _list() -> dict:
 
 
 def run(args: argparse.Namespace) -> dict:
-    import numpy as np
-
-    from flapsim.modal import animate as anim_mod
-    from flapsim.modal.gaits import MODELS, gait, plan_gait, resolve_model
-    from flapsim.modal.heuristics import CATEGORY_NAMES
-
     if args.gait == "list":
         return _list()
     g = gait(args.gait)
@@ -84,7 +87,6 @@ def run(args: argparse.Namespace) -> dict:
     scale = args.stiffness_scale
     tuning = None
     if args.tune_stiffness:
-        from flapsim.modal.stiffness import tune_stiffness
 
         keyframe = g.keyframe if g.keyframe and _has_key(model, g.keyframe) else None
         res = tune_stiffness(model, keyframe=keyframe)
@@ -155,47 +157,37 @@ def run(args: argparse.Namespace) -> dict:
         print(f"trajectory -> {args.npz}")
         out["npz"] = args.npz
     if args.bvh:
-        from flapsim.modal.bvh import write_bvh
 
         ch = write_bvh(args.bvh, model, anim.qpos, 1.0 / args.fps)
         print(f"BVH ({ch} channels) -> {args.bvh}")
         out["bvh"] = args.bvh
     if args.sheet:
-        from flapsim.modal.browser import contact_sheet
 
         info = contact_sheet(plan, model, args.sheet)
         print(f"contact sheet ({info['frames']} frames of one {info['period_s']:.2g} s cycle) "
               f"-> {args.sheet}")
         out["sheet"] = args.sheet
     if args.video:
-        from flapsim.modal.video import render_poses
 
         frames = render_poses(model, list(anim.qpos), args.video, fps=args.fps, track=True)
         print(f"video ({frames} frames) -> {args.video}")
         out["video"] = args.video
     if args.browse:
-        import os
 
         if not os.environ.get("DISPLAY"):
             raise InputError("--browse needs a display (DISPLAY is not set); use --sheet PNG")
-        from flapsim.modal.browser import ModeBrowser
 
         ModeBrowser(plan, model).show()
     return out
 
 
 def _has_key(model, name: str) -> bool:
-    import mujoco
-
     return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name) >= 0
 
 
 def constraint_checks(model, plan, anim) -> dict:
     """First-order and finite-amplitude checks of the gait's constraints."""
-    import mujoco
-    import numpy as np
 
-    from flapsim.modal.gaits import head_orientation_error
 
     a = plan.analysis
     out: dict[str, float] = {}

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from flapsim.core.errors import InputError
 from flapsim.core.validate import add_output_arg, quantity
+from flapsim.modal.creatures import CREATURES, load_creature, run_creature, with_gait
+from flapsim.modal.video import render_poses
 
 HELP = "simulate the loop or linear creature driven by its two lowest modes; report distance"
 SEED_HELP = "accepted for uniformity; the creature is deterministic, --seed changes nothing"
@@ -30,10 +33,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> dict:
-    import math
-
-    from flapsim.modal.creatures import CREATURES, load_creature, run_creature, with_gait
-
     if args.model not in CREATURES:
         raise InputError(f"unknown creature {args.model!r}; choose one of {', '.join(CREATURES)}")
     gait = with_gait(
@@ -65,7 +64,6 @@ def run(args: argparse.Namespace) -> dict:
     )
     print(f"real-time factor {r['realtime_factor']:.1f} (simulated s per wall s)")
     if args.video and frames is not None:
-        from flapsim.modal.video import render_poses
 
         n = render_poses(model, list(frames), args.video, fps=fps, track=True)
         print(f"video: {n} frames -> {args.video}")

@@ -7,8 +7,13 @@ import logging
 import time
 from pathlib import Path
 
+import numpy as np
+
 from flapsim.core.errors import InputError
+from flapsim.core.loading import load_model
 from flapsim.core.validate import add_input_arg, add_output_arg, integer, quantity
+from flapsim.modal.analysis import analyze, fix_root, parse_constraint
+from flapsim.modal.video import mode_poses, render_poses
 
 HELP = "modal analysis of an MJCF model: lowest vibration modes, JSON, optional video/GIF"
 SEED_HELP = "accepted for uniformity; the analysis is deterministic, --seed changes nothing"
@@ -57,11 +62,6 @@ def _parse_modes(text: str) -> list[int]:
 
 
 def run(args: argparse.Namespace) -> dict:
-    import numpy as np
-
-    from flapsim.core.loading import load_model
-    from flapsim.modal.analysis import analyze, fix_root, parse_constraint
-
     video_modes = _parse_modes(args.video_modes) if args.video_modes else None
     constraints = [parse_constraint(c) for c in args.constrain]
 
@@ -104,7 +104,6 @@ def run(args: argparse.Namespace) -> dict:
 
     out = {"model": str(path), "analysis_s": elapsed, **result.to_dict(shapes=args.shapes)}
     if args.video:
-        from flapsim.modal.video import mode_poses, render_poses
 
         modes = video_modes if video_modes is not None else [r["mode"] for r in rows]
         for i in modes:

@@ -6,10 +6,13 @@ from __future__ import annotations
 import argparse
 import time
 
+from tqdm import tqdm
+
 from flapsim.cli.commands.swim import add_target_arguments, target_from_args
 from flapsim.core.errors import InputError
 from flapsim.core.io import atomic_path
 from flapsim.core.validate import RANGES, add_input_arg, add_output_arg, integer, quantity
+from flapsim.swim.plots import sweep_plot
 from flapsim.swim.sweep import PARAMETERS, sweep, table
 
 HELP = ("batch-evaluate the swimmer: one stroke over several water densities, lung "
@@ -52,7 +55,6 @@ def run(args: argparse.Namespace) -> dict:
     if not values:
         raise InputError("--values: give at least one value")
     target = target_from_args(args)
-    from tqdm import tqdm
 
     t0 = time.perf_counter()
     with tqdm(total=len(values), unit="run", desc=f"{args.stroke} x {args.vary}") as bar:
@@ -75,7 +77,6 @@ def run(args: argparse.Namespace) -> dict:
             tmp.write_text("\n".join(lines) + "\n")
         print(f"table written to {args.csv}")
     if args.plot:
-        from flapsim.swim.plots import sweep_plot
 
         sweep_plot(rows, args.vary, PARAMETERS[args.vary][1], args.plot, args.stroke)
         print(f"plot written to {args.plot}")

@@ -5,14 +5,21 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 
 import numpy as np
 
 from flapsim.core.errors import InputError
+from flapsim.core.io import atomic_video, save_npz
 from flapsim.core.validate import add_input_arg, add_output_arg, quantity, vector
 from flapsim.fluid.flow import FlowField, Source, Vortex
-from flapsim.swim.model import SwimmerParams
+from flapsim.swim.goals import Heading, Path, Point, figure_eight, load_path, load_trajectory
+from flapsim.swim.interactive import SwimViewer, check_display
+from flapsim.swim.model import Swimmer, SwimmerParams
+from flapsim.swim.per_cycle import calibrate, load_table
+from flapsim.swim.plots import track_plot
 from flapsim.swim.simulate import swim
+from flapsim.swim.strokes import load_stroke
 
 HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate and floating height"
 SEED_HELP = "accepted for uniformity; swimming is deterministic, --seed changes nothing"
@@ -128,7 +135,6 @@ def _flow(args: argparse.Namespace) -> FlowField:
 
 def target_from_args(args: argparse.Namespace):
     """The target the target arguments name, or None."""
-    from flapsim.swim.goals import Heading, Point, figure_eight, load_path
 
     if args.target is not None:
         x, y = _vec(args.target, "--target", 2)
@@ -141,7 +147,6 @@ def target_from_args(args: argparse.Namespace):
     if args.figure8 is not None:
         return figure_eight(args.figure8, lookahead=args.lookahead)
     if getattr(args, "trajectory", None) is not None:
-        from flapsim.swim.goals import load_trajectory
 
         return load_trajectory(args.trajectory)
     if args.heading is not None:
@@ -160,9 +165,7 @@ def _layers(args: argparse.Namespace) -> str:
 def calibrate_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
     """``flapsim swim --calibrate --stroke NAME``: the per-cycle tables (see
     :func:`flapsim.swim.per_cycle.calibrate`)."""
-    import os
 
-    from flapsim.swim.per_cycle import calibrate
 
     if args.table is not None and not str(args.table).endswith(".json"):
         raise InputError(f"--table must name a .json file, got {args.table!r}")
@@ -197,8 +200,6 @@ def run(args: argparse.Namespace) -> dict:
         return calibrate_command(args, params)
     cycle_table = None
     if args.table is not None:
-        from flapsim.swim.per_cycle import load_table
-        from flapsim.swim.strokes import load_stroke
 
         cycle_table = load_table(load_stroke(args.stroke), args.table,
                                  layers="all" if layers == "all" else "cycle")
@@ -209,10 +210,6 @@ def run(args: argparse.Namespace) -> dict:
     viewer = None
     swimmer = None
     if args.viewer:
-        from flapsim.swim.goals import Point
-        from flapsim.swim.interactive import SwimViewer, check_display
-        from flapsim.swim.model import Swimmer
-        from flapsim.swim.strokes import load_stroke
 
         check_display()
         if target is not None and not isinstance(target, Point):
@@ -227,7 +224,6 @@ def run(args: argparse.Namespace) -> dict:
     with contextlib.ExitStack() as stack:
         on_frame = None
         if video:  # frames stream into a temporary file, renamed only when the swim succeeded
-            from flapsim.core.io import atomic_video
 
             on_frame = stack.enter_context(atomic_video(video, fps=args.fps, codec="libx264",
                                                         quality=7))
@@ -243,7 +239,6 @@ def run(args: argparse.Namespace) -> dict:
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
     if args.plot:
-        from flapsim.swim.plots import track_plot
 
         track_plot(result, args.plot)
         s["plot"] = str(args.plot)
@@ -254,8 +249,6 @@ def run(args: argparse.Namespace) -> dict:
                        "final_rate_hz": rates[-1] if rates else s["stroke_rate_hz"],
                        "final_layers": s["layers_mode"]}
     if args.out:
-        from flapsim.core.io import save_npz
-        from flapsim.swim.goals import Path
 
         extra = {}
         if isinstance(result.target, Path):

@@ -7,13 +7,19 @@ interruptions."""
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 from pathlib import Path
 from typing import Any
 
+from flapsim.bird.control.database import merge_databases, read_header
+from flapsim.bird.training.discovery import DiscoveryConfig, DiscoveryWorker
+from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
+from flapsim.bird.training.train import train
 from flapsim.core.errors import InputError
 from flapsim.core.io import write_problem
+from flapsim.fluid.coefficients import get_table
 
 HELP = ("train the dove's controller database: sample wingbeats in parallel (local processes "
         "or Ray), resumable, into one database file")
@@ -181,7 +187,6 @@ def validate(args: argparse.Namespace) -> None:
 def read_centre_wingbeat(path: str) -> tuple[float, ...]:
     """--centre-wingbeat's file: a JSON list of numbers, or an object with one under
     ``wingbeat``; its length and values are checked with the rest of the configuration."""
-    import json
 
     try:
         data = json.loads(Path(path).read_text())
@@ -201,13 +206,6 @@ def read_centre_wingbeat(path: str) -> tuple[float, ...]:
 
 def phase1(args: argparse.Namespace) -> tuple[Any, type]:
     """The phase-1 sampler: (config, worker class)."""
-    try:
-        from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
-    except ModuleNotFoundError as exc:
-        if exc.name != "flapsim.bird.training.sampling":
-            raise
-        raise InputError("phase 1 sampling is not built yet (flapsim.bird.training.sampling is missing)") \
-            from None
     kwargs: dict[str, Any] = {"seed": args.seed}
     if args.sigma is not None:
         kwargs["sigma"] = args.sigma
@@ -228,7 +226,6 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
     if getattr(args, "feathers", "rigid") != "rigid":
         kwargs["feathers"] = args.feathers
     if getattr(args, "table", None):
-        from flapsim.fluid.coefficients import get_table
 
         kwargs["table"] = get_table(args.table).name  # an unknown name: one-line error here
     if getattr(args, "twist_bias_deg", None) is not None:
@@ -257,9 +254,6 @@ def run_phase2(args: argparse.Namespace) -> tuple[Any, type]:
     database); returns the resampling step's (config, worker class): phase-1 sampling
     around the discovered wingbeats, with ``--extrapolate`` of the samples along the
     discovered manifold beyond its extremes."""
-    from flapsim.bird.control.database import read_header
-    from flapsim.bird.training.discovery import DiscoveryConfig, DiscoveryWorker
-    from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
 
     src = Path(args.from_db).resolve()
     base = read_header(src).get("config") or {}
@@ -283,7 +277,6 @@ def run_phase2(args: argparse.Namespace) -> tuple[Any, type]:
 def train_from_args(args: argparse.Namespace, config: Any, worker_cls: type, kind: str,
                     out: str | Path | None = None, n_samples: int | None = None) -> dict:
     """Run :func:`flapsim.bird.training.train.train` for parsed arguments and print the summary."""
-    from flapsim.bird.training.train import train
 
     workers = args.workers or os.cpu_count() or 1
     s = train(config, out or args.out, n_samples or args.samples, worker_cls, workers=workers,
@@ -340,8 +333,6 @@ def validate_merge(args: argparse.Namespace) -> None:
 
 
 def run_merge(args: argparse.Namespace) -> dict:
-    from flapsim.bird.control.database import merge_databases
-
     db = merge_databases(args.merge, args.out)
     parts = db.header["provenance"]["parts"]
     print(f"{args.out}: {db.n} samples from {len(parts)} databases ("
