@@ -1,12 +1,15 @@
-"""How much the database's random draw matters: train databases alike with several seeds (the
-bundled command, ``--seed N``; kept in ``--cache``, resumable) and fly the whole flight suite
-with each, printing a table per seed (docs/flight_log.md, "How much the database's
-random draw matters").
+"""How much the database's random draw matters: databases trained alike with several seeds
+(the bundled database's training command with ``--seed N``; kept in ``--cache``, so a run
+resumes), the whole flight suite flown with each, and a table row printed per seed.
 
-    python studies/dove_database_seeds.py --seeds 1-8 [--cache seed_dbs] [--json out.json]
-        [--eval-args "--k 100 --bank-lead 0"] [--quick] [--feathers modal]
+    python studies/dove_database_seeds.py --seeds 1-8 [--cache seed_dbs] [--samples 10000]
+        [--feathers rigid|modal] [--config FILE.toml] [--eval-args "--k 100"] [--quick]
+        [--json out.json]
 
-Each database takes ~3.3 min to train and the suite ~2.5 min to fly on the 2 cores.
+``--config`` flies the suite under a control configuration file (``[controller]`` and
+``[path]`` tables; ``flapsim list config`` prints the defaults); ``--eval-args`` passes other
+``flapsim eval`` options. Each database takes ~3.3 min to train and the suite ~2.5 min to fly
+on 2 cores.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from flapsim import scenarios
 from flapsim.core.io import write_json
 
 
@@ -55,12 +59,13 @@ def _row(seed: int, result: dict) -> tuple[str, int]:
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-8")
-    ap.add_argument("--samples", type=int, default=10000)
-    ap.add_argument("--cache", default="seed_dbs")
+    ap.add_argument("--seeds", default="1-8", help="seeds, e.g. 1-8 or 1,3,5 (default 1-8)")
+    ap.add_argument("--samples", type=int, default=10000, help="samples per database (default 10000)")
+    ap.add_argument("--cache", default="seed_dbs", help="folder of the databases and suite results")
+    ap.add_argument("--config", default=None, help="control configuration file for the suite (TOML)")
     ap.add_argument("--eval-args", default="", help="more flapsim eval arguments, quoted")
     ap.add_argument("--quick", action="store_true", help="the suite's short variants (smoke run)")
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--json", default=None, help="write the table and every suite's results here")
     ap.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                     help="the dove the databases are trained on and flown with")
     return ap
@@ -71,7 +76,7 @@ def main(argv: list[str] | None = None) -> None:
     a = ap.parse_args(argv)
     cache = Path(a.cache)
     cache.mkdir(exist_ok=True)
-    flight = _flight_scenarios()
+    flight = scenarios.names(family="flight", all_only=True)
     rows, results = [], {}
     for seed in _seeds(a.seeds):
         tag = "" if a.feathers == "rigid" else "modal_"
@@ -83,7 +88,7 @@ def main(argv: list[str] | None = None) -> None:
         out = cache / f"{tag}suite_seed{seed}.json"
         cmd = [sys.executable, "-m", "flapsim.cli.main", "eval", "--scenario", ",".join(flight),
                "--db", str(db), "--feathers", a.feathers, "--json", str(out),
-               *shlex.split(a.eval_args)]
+               *(["--config", a.config] if a.config else []), *shlex.split(a.eval_args)]
         if a.quick:
             cmd.append("--quick")
         subprocess.run(cmd)  # exits 1 when a run got lost: the table says which
@@ -97,13 +102,6 @@ def main(argv: list[str] | None = None) -> None:
     print("\n".join(rows))
     if a.json:
         write_json(a.json, {"seeds": list(results), "rows": rows, "suites": results})
-
-
-def _flight_scenarios() -> list[str]:
-    from flapsim import scenarios
-
-    scenarios.load_all()
-    return scenarios.names(family="flight", all_only=True)
 
 
 if __name__ == "__main__":

@@ -1,26 +1,26 @@
-"""How firm a flight scenario's verdict is: the scenario flown N times, each start's forward
-speed changed by a draw far below anything physical (default +-1 mm/s), and the verdicts
-counted. ``flapsim eval --starts N`` does the same for any scenario or path file; this script
-adds the ten held-out user paths (``user``) and any evaluation option (``--set``).
+"""How firm a flight's verdict is: a path scenario or a held-out user path flown N times, each
+start's forward speed changed by a draw far below anything physical (default +-1 mm/s), and
+the completions counted.
+
+    python studies/dove_verdict_spread.py NAME[,NAME...]|user [--n 10] [--jitter 0.001]
+        [--seed 0] [--workers 2] [--db bundled,seed1.db,...] [--config FILE.toml]
+        [--json out.json]
 
 A controlled flight is chaotic: near the limits of what the dove can do, one run's verdict
-turns on last-bit differences (session 18: the same commit lost ``climb-turn-15`` here where
-session 15 had followed it; see :mod:`flapsim.core.environment`). A completion rate over
-perturbed starts says what one verdict cannot: whether the scenario is within reach, at its
-edge, or beyond it.
-
-    python studies/dove_verdict_spread.py NAME[,NAME...]|user [--n 10]
-        [--jitter 0.001] [--workers 2] [--refine-goal full|reachable] [--set NAME=VALUE ...]
-        [--patch FILE.py ...] [--json out.json]
+turns on last-bit differences (another machine, another library build: see
+:mod:`flapsim.core.environment`). A completion rate over perturbed starts says what one
+verdict cannot: whether the path is within reach, at its edge, or beyond it.
+``flapsim eval --starts N`` does the same for one scenario or path file; this study adds the ten
+held-out user paths and several databases in one run.
 
 NAME: a path scenario (``flapsim eval --list``: figure8*, sinusoid*, climb-turn-*, plucked-*,
-wind-*) or one of :data:`flapsim.bird.tasks.path_shapes.USER_PATHS` (``user``: all ten). The draws are
-reproducible (``--seed``); the first start is the unperturbed one. About half a run's flight
-time per run on 2 workers.
-
-``--patch FILE.py`` runs that file in every worker before its first flight: an experiment that
-changes the package's behaviour without changing the package (the patches behind the flight
-log's "Tried, not kept" entries are in ``scripts/experiments/``).
+wind-*) or one of :data:`flapsim.bird.tasks.path_shapes.USER_PATHS` (``user``: all ten, judged
+as ``flapsim eval --path`` judges: lost farther than 3 m from the path, or the end not reached
+in the time allowed; the table gives each path's tightest radius and steepest climb and
+descent). ``--n 1`` flies each once, unperturbed: the plain verdict. The draws are
+reproducible (``--seed``); the first start is the unperturbed one. ``--config``: a control
+configuration file (``[controller]`` and ``[path]`` tables, as ``flapsim eval --config`` reads;
+``flapsim list config`` prints the defaults). About half a flight's time per run on 2 workers.
 """
 
 from __future__ import annotations
@@ -28,119 +28,97 @@ from __future__ import annotations
 import argparse
 import multiprocessing as mp
 import time
-from pathlib import Path
 
+from flapsim import scenarios
+from flapsim.bird.control.config import ControllerConfig
+from flapsim.bird.tasks.config import PathControlConfig, load_control_config
+from flapsim.bird.tasks.flight_tasks import Task, fly_task
 from flapsim.bird.tasks.path_shapes import USER_PATHS
 from flapsim.core.io import write_json
 
-_PATCHED: set[str] = set()
 
-
-def _apply_patches(patches: tuple[str, ...]) -> None:
-    """Run each patch file once in this process (a pool worker flies many jobs)."""
-    import runpy
-
-    for path in patches:
-        if path not in _PATCHED:
-            runpy.run_path(path, run_name="flapsim_patch")
-            _PATCHED.add(path)
-
-
-def _fly(job: tuple[str, float, dict, tuple[str, ...]]) -> dict:
-    name, dv, options, patches = job
-    _apply_patches(patches)
-    from flapsim import scenarios
-
-    # the start's forward speed changed by dv: the speed, not the direction
-    opt = scenarios.EvalOptions(**options, start_speed_change=dv)
+def _fly(job: tuple[str, str, float, ControllerConfig | None, PathControlConfig | None]) -> dict:
+    """One run (in a worker): path or scenario ``name`` with database ``db``, the start's
+    forward speed changed by ``dv`` m/s (the speed, not the direction), under the controllers'
+    configurations (None: the dove's defaults)."""
+    name, db, dv, controller, path_control = job
+    db_path = None if db == "bundled" else db
+    row = {"name": name, "db": db, "dv_m_s": dv}
     if name in USER_PATHS:
-        from flapsim.bird.tasks.flight_tasks import Task
-        from flapsim.scenarios.flight import _fly_task  # the options applied as eval applies them
-
-        t = _fly_task(Task(USER_PATHS[name]()), opt, False)
+        path = USER_PATHS[name]()
+        g = path.geometry()
+        task = (path_control or PathControlConfig.for_dove()).apply(Task(path, start_speed_change=dv))
+        t = fly_task(task, db_path, config=controller)
         m = t.metrics
-        return {"name": name, "dv_m_s": dv, "status": t.status, "note": m.get("note", ""),
-                "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
+        return {**row, "status": t.status, "note": t.reason,
+                "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat"),
+                "min_radius_m": g.min_radius_m, "max_climb_deg": g.max_climb_deg,
+                "max_descent_deg": g.max_descent_deg}
     sc = scenarios.get(name)
-    r = sc.runner(sc, opt)
+    r = sc.runner(sc, scenarios.EvalOptions(db=db_path, controller=controller, path_control=path_control,
+                                            start_speed_change=dv))
     m = r.get("metrics", {})
-    return {"name": name, "dv_m_s": dv, "status": r.get("status"), "note": r.get("reason", ""),
+    return {**row, "status": r.get("status"), "note": r.get("reason", ""),
             "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
 
 
-def _value(text: str) -> int | float | str:
-    """A ``--set`` value: a number where it reads as one (refine=3, carry=0.3), else the text
-    (db=seed1.db, refine_goal=reachable)."""
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return text
-
-
-def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scenario")
-    ap.add_argument("--n", type=int, default=10, help="perturbed starts (default 10)")
-    ap.add_argument("--jitter", type=float, default=0.001,
-                    help="largest change of the start's speed, m/s (default 0.001)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--refine-goal", choices=("full", "reachable"), default=None)
-    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="an evaluation option (flapsim.scenarios.EvalOptions), e.g. "
-                         "bank_lead_s=0.4, carry=0.3, refine=3, db=seed1.db; repeatable")
-    ap.add_argument("--patch", action="append", default=[], metavar="FILE.py",
-                    help="run this Python file in every worker before it flies (an experiment's "
-                         "change to the package); repeatable")
-    ap.add_argument("--json")
-    return ap
-
-
-def main(argv: list[str] | None = None) -> None:
-    ap = parser()
-    a = ap.parse_args(argv)
-    options: dict = {"refine_goal": a.refine_goal}
-    for item in a.set:
-        key, _, value = item.partition("=")
-        options[key] = _value(value)
-    from flapsim import scenarios
-
-    names = [n for token in a.scenario.split(",")
-             for n in (list(USER_PATHS) if token == "user" else [token])]
-    for name in names:
+def names(text: str) -> list[str]:
+    """The runs' paths: ``user`` expands to the ten user paths; a scenario must fly a path."""
+    out = [n for token in text.split(",") for n in (list(USER_PATHS) if token == "user" else [token])]
+    for name in out:
         if name in USER_PATHS:
             continue
         sc = scenarios.get(name)
         if sc.family != "flight" or sc.runner.__name__ != "run_path":
             raise SystemExit(f"{name}: not a path scenario (see the module docstring)")
+    return out
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scenario", help="path scenarios and user paths, comma-separated (user: all ten)")
+    ap.add_argument("--n", type=int, default=10, help="perturbed starts (default 10)")
+    ap.add_argument("--jitter", type=float, default=0.001,
+                    help="largest change of the start's speed, m/s (default 0.001)")
+    ap.add_argument("--seed", type=int, default=0, help="the draw of the speed changes")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--db", default="bundled",
+                    help="comma-separated databases (bundled: the bundled one)")
+    ap.add_argument("--config", default=None,
+                    help="control configuration file (TOML; default: the dove's defaults)")
+    ap.add_argument("--json", help="write every run and the counts here")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    a = parser().parse_args(argv)
+    runs = names(a.scenario)
     dvs = scenarios.start_speed_changes(a.n, a.jitter, a.seed)  # as flapsim eval --starts draws
-    patches = []
-    for f in a.patch:
-        if not Path(f).is_file():
-            raise SystemExit(f"--patch {f}: no such file")
-        patches.append(str(Path(f).resolve()))
-    jobs = [(name, float(dv), options, tuple(patches)) for name in names for dv in dvs]
+    # the configuration read once, here: a mistake in the file stops the study before any flight
+    controls = load_control_config(a.config) if a.config else (None, None)
+    jobs = [(name, db, float(dv), *controls) for db in a.db.split(",") for name in runs for dv in dvs]
     t0 = time.perf_counter()
     with mp.get_context("spawn").Pool(a.workers) as pool:
         rows = pool.map(_fly, jobs, chunksize=1)
     wall = time.perf_counter() - t0
-    counts = {}
+    counts: dict[str, int] = {}
     for r in rows:
-        print(f"{r['name']:22s} dv {r['dv_m_s'] * 1e3:+7.3f} mm/s  {r['status']:9s}  largest "
-              f"{r['max_distance_m'] if r['max_distance_m'] is not None else float('nan'):5.2f} m  "
-              f"{r['note']}")
-        counts[r["name"]] = counts.get(r["name"], 0) + (r["status"] == "completed")
-    for name, done in counts.items():
+        shape = (f"r>={r['min_radius_m']:4.2f} m climb {r['max_climb_deg']:4.1f}/"
+                 f"{r['max_descent_deg']:4.1f} deg  " if "min_radius_m" in r else "")
+        largest = r["max_distance_m"] if r["max_distance_m"] is not None else float("nan")
+        print(f"{r['db']:<12} {r['name']:22s} dv {r['dv_m_s'] * 1e3:+7.3f} mm/s  {shape}"
+              f"{r['status']:9s}  largest {largest:5.2f} m  {r['note']}")
+        key = f"{r['db']} {r['name']}"
+        counts[key] = counts.get(key, 0) + (r["status"] == "completed")
+    for key, done in counts.items():
         lo, hi = scenarios.completion_interval(done, len(dvs))
-        print(f"{name}: completed {done} of {len(dvs)} starts within +-{a.jitter * 1e3:g} mm/s "
+        print(f"{key}: completed {done} of {len(dvs)} starts within +-{a.jitter * 1e3:g} mm/s "
               f"({100 * lo:.0f}-{100 * hi:.0f} % at 95 %)")
     print(f"{sum(counts.values())} of {len(rows)} in all ({wall:.0f} s)")
     if a.json:
-        write_json(a.json, {"scenarios": names, "jitter_m_s": a.jitter, "seed": a.seed,
-                            "completed": counts, "runs": rows, "wall_s": wall,
-                            "options": options, "patches": patches})
+        write_json(a.json, {"scenarios": runs, "databases": a.db.split(","), "config": a.config,
+                            "jitter_m_s": a.jitter, "seed": a.seed, "completed": counts, "runs": rows,
+                            "wall_s": wall})
 
 
 if __name__ == "__main__":
