@@ -4,7 +4,7 @@ the completions counted.
 
     python studies/dove_verdict_spread.py NAME[,NAME...]|user [--n 10] [--jitter 0.001]
         [--seed 0] [--workers 2] [--db bundled,seed1.db,...] [--config FILE.toml]
-        [--json out.json]
+        [--set NAME=VALUE ...] [--json out.json]
 
 A controlled flight is chaotic: near the limits of what the dove can do, one run's verdict
 turns on last-bit differences (another machine, another library build: see
@@ -20,12 +20,15 @@ in the time allowed; the table gives each path's tightest radius and steepest cl
 descent). ``--n 1`` flies each once, unperturbed: the plain verdict. The draws are
 reproducible (``--seed``); the first start is the unperturbed one. ``--config``: a control
 configuration file (``[controller]`` and ``[path]`` tables, as ``flapsim eval --config`` reads;
-``flapsim list config`` prints the defaults). About half a flight's time per run on 2 workers.
+``flapsim list config`` prints the defaults); ``--set NAME=VALUE`` sets one field of either
+table over it, e.g. ``--set bank_lead_s=0.4`` or ``--set refine=0``. About half a flight's time
+per run on 2 workers.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import multiprocessing as mp
 import time
 
@@ -62,6 +65,28 @@ def _fly(job: tuple[str, str, float, ControllerConfig | None, PathControlConfig 
             "max_distance_m": m.get("max_path_distance"), "Ef_m": m.get("Ef_per_wingbeat")}
 
 
+def settings(controls: tuple[ControllerConfig, PathControlConfig], items: list[str]
+             ) -> tuple[ControllerConfig, PathControlConfig]:
+    """``controls`` with each ``NAME=VALUE`` of ``items`` set: NAME a field of
+    :class:`ControllerConfig` or :class:`PathControlConfig` (their names differ), VALUE read as
+    that field's type; the configurations check their ranges."""
+    out = list(controls)
+    for item in items:
+        key, sep, text = item.partition("=")
+        which = [i for i, c in enumerate(out) if key in {f.name for f in dataclasses.fields(c)}]
+        if not sep or not which:
+            known = sorted(f.name for c in out for f in dataclasses.fields(c))
+            raise SystemExit(f"--set {item}: expected NAME=VALUE, NAME one of {', '.join(known)}")
+        c = out[which[0]]
+        kind = type(getattr(c, key))
+        try:
+            value = kind(text)
+        except ValueError:
+            raise SystemExit(f"--set {item}: {key} takes a {kind.__name__}") from None
+        out[which[0]] = dataclasses.replace(c, **{key: value})
+    return out[0], out[1]
+
+
 def names(text: str) -> list[str]:
     """The runs' paths: ``user`` expands to the ten user paths; a scenario must fly a path."""
     out = [n for token in text.split(",") for n in (list(USER_PATHS) if token == "user" else [token])]
@@ -86,6 +111,9 @@ def parser() -> argparse.ArgumentParser:
                     help="comma-separated databases (bundled: the bundled one)")
     ap.add_argument("--config", default=None,
                     help="control configuration file (TOML; default: the dove's defaults)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a field of the [controller] or [path] table over --config's, e.g. "
+                         "bank_lead_s=0.4; repeatable")
     ap.add_argument("--json", help="write every run and the counts here")
     return ap
 
@@ -95,7 +123,8 @@ def main(argv: list[str] | None = None) -> None:
     runs = names(a.scenario)
     dvs = scenarios.start_speed_changes(a.n, a.jitter, a.seed)  # as flapsim eval --starts draws
     # the configuration read once, here: a mistake in the file stops the study before any flight
-    controls = load_control_config(a.config) if a.config else (None, None)
+    controls = (settings(load_control_config(a.config), a.set) if a.config or a.set
+                else (None, None))
     jobs = [(name, db, float(dv), *controls) for db in a.db.split(",") for name in runs for dv in dvs]
     t0 = time.perf_counter()
     with mp.get_context("spawn").Pool(a.workers) as pool:
@@ -117,6 +146,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{sum(counts.values())} of {len(rows)} in all ({wall:.0f} s)")
     if a.json:
         write_json(a.json, {"scenarios": runs, "databases": a.db.split(","), "config": a.config,
+                            "set": a.set,
                             "jitter_m_s": a.jitter, "seed": a.seed, "completed": counts, "runs": rows,
                             "wall_s": wall})
 
