@@ -30,7 +30,7 @@ from flapsim.core.io import write_json
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("db", help="the controller database (.db) to evaluate")
     ap.add_argument("--method", default="lwlr", choices=("knn", "lwlr"), help="the regression")
     ap.add_argument("--k", type=int, default=None, help="neighbours (default: the controller's)")

@@ -58,7 +58,7 @@ def _row(seed: int, result: dict) -> tuple[str, int]:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="1-8", help="seeds, e.g. 1-8 or 1,3,5 (default 1-8)")
     ap.add_argument("--samples", type=int, default=10000, help="samples per database (default 10000)")
     ap.add_argument("--cache", default="seed_dbs", help="folder of the databases and suite results")

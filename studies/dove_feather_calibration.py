@@ -52,7 +52,7 @@ def plot(rec: dict, path: Path) -> None:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="dove_feather_calibration", help="output folder")
     ap.add_argument("--speed", type=float, default=7.0, help="headwind, m/s")
     ap.add_argument("--pitch-deg", type=float, default=5.0, help="trunk pitch, deg")

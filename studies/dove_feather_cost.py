@@ -141,7 +141,7 @@ def measure(kind: str, wingbeats: int) -> dict:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--wingbeats", type=int, default=1)
     ap.add_argument("--json", default=None)
     return ap

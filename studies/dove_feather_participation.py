@@ -49,7 +49,7 @@ def bare_us(m: mujoco.MjModel, n: int = 3000) -> float:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--wingbeats", type=int, default=10)
     ap.add_argument("--json", default=None)
     return ap

@@ -90,7 +90,7 @@ def _floats(text: str) -> list[float]:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--db", default="bundled",
                     help="comma-separated databases (bundled: the feathers' bundled one)")
     ap.add_argument("--config", default="default",

@@ -24,7 +24,7 @@ from flapsim.scenarios.flight import primary_name
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--plucked", default="2,5,8", help="left primaries, from the outermost")
     ap.add_argument("--speed", type=float, default=7.0)
     ap.add_argument("--pitch", type=float, default=5.0)

@@ -15,7 +15,7 @@ from flapsim.core.io import write_json
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--wingbeats", type=int, default=6)
     ap.add_argument("--skip", type=int, default=2, help="wingbeats flown before averaging")
     ap.add_argument("--table", default=None)

@@ -92,7 +92,7 @@ def answer_errors(ctl, fl, log: list[dict], w: np.ndarray) -> dict:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--db", default="", help="comma-separated databases to compare with the bundled one")
     ap.add_argument("--json", default=None, help="write the errors per database here")
     return ap

@@ -23,7 +23,7 @@ from flapsim.core.io import write_json
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--wingbeats", type=int, default=10)
     ap.add_argument("--rates", default="2400,1600,1200,800,600")
     ap.add_argument("--json", default=None)

@@ -33,7 +33,7 @@ def _one_speed(job):
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--speeds", default="5,6,7,8", help="m/s")
     ap.add_argument("--pitches", default="0,5,10,15,20", help="trunk pitch in the tunnel, deg")
     ap.add_argument("--flap", default="0.9,1.0,1.05,1.1,1.15,1.2", help="shoulder-flap scales")

@@ -61,7 +61,7 @@ def cycle_lift_to_drag(params: DoveParams, p: np.ndarray, speed: float, pitch_de
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--speeds", default="6,7,8")
     ap.add_argument("--pitches", default="0,5,10")
     ap.add_argument("--tables", default=",".join(TABLES))

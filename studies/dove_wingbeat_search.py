@@ -123,7 +123,7 @@ def _evaluate(x: np.ndarray, objective: str, wingbeats: int, skip: int,
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb", "steer"), default="cruise")
     ap.add_argument("--bound", type=float, default=3.0, help="capture spreads each way (default 3)")
     ap.add_argument("--wingbeats", type=int, default=6)

@@ -38,7 +38,7 @@ def figure8_setup(a: argparse.Namespace) -> tuple:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stroke", default="crawl")
     ap.add_argument("--radius", type=float, default=None, help="loop radius [m] (default: the scenario's)")
     ap.add_argument("--layers", default="cycle,all")

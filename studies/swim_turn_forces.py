@@ -120,7 +120,7 @@ def steady(stroke: str, layers: str, deg: float, hp: HandRuleParams, rules: tupl
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--stroke", default="breaststroke")
     ap.add_argument("--radius", type=float, default=None)
     ap.add_argument("--layers", default="cycle,all")
