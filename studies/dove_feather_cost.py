@@ -142,8 +142,8 @@ def measure(kind: str, wingbeats: int) -> dict:
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--wingbeats", type=int, default=1)
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--wingbeats", type=int, default=1, help="wingbeats of controls per timed rollout")
+    ap.add_argument("--json", default=None, help="write every time here")
     return ap
 
 

@@ -50,8 +50,8 @@ def bare_us(m: mujoco.MjModel, n: int = 3000) -> float:
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--wingbeats", type=int, default=10)
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--wingbeats", type=int, default=10, help="wingbeats flown per mode count")
+    ap.add_argument("--json", default=None, help="write every number here")
     return ap
 
 

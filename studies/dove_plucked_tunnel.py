@@ -26,9 +26,9 @@ from flapsim.scenarios.flight import primary_name
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--plucked", default="2,5,8", help="left primaries, from the outermost")
-    ap.add_argument("--speed", type=float, default=7.0)
-    ap.add_argument("--pitch", type=float, default=5.0)
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--speed", type=float, default=7.0, help="headwind, m/s")
+    ap.add_argument("--pitch", type=float, default=5.0, help="trunk pitch, deg")
+    ap.add_argument("--json", default=None, help="write every run here")
     return ap
 
 

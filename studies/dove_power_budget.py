@@ -16,14 +16,15 @@ from flapsim.core.io import write_json
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--wingbeats", type=int, default=6)
+    ap.add_argument("--wingbeats", type=int, default=6, help="wingbeats flown in all")
     ap.add_argument("--skip", type=int, default=2, help="wingbeats flown before averaging")
-    ap.add_argument("--table", default=None)
-    ap.add_argument("--tail-bias-deg", type=float, default=None)
+    ap.add_argument("--table", default=None, help="lift/drag coefficient table (default: the dove's)")
+    ap.add_argument("--tail-bias-deg", type=float, default=None,
+                    help="tail bias added to P0, deg (default: the flight's)")
     ap.add_argument("--twist-bias-deg", type=float, default=0.0,
                     help="both shoulder twists added to P0, deg (+ pronates)")
     ap.add_argument("--speed", type=float, default=None, help="start speed, m/s (default 7)")
-    ap.add_argument("--json")
+    ap.add_argument("--json", help="write the budget here")
     return ap
 
 

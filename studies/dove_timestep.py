@@ -24,9 +24,10 @@ from flapsim.core.io import write_json
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--wingbeats", type=int, default=10)
-    ap.add_argument("--rates", default="2400,1600,1200,800,600")
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--wingbeats", type=int, default=10, help="wingbeats flown at each rate")
+    ap.add_argument("--rates", default="2400,1600,1200,800,600",
+                    help="step rates, Hz; the first is the reference")
+    ap.add_argument("--json", default=None, help="write every run here")
     return ap
 
 

@@ -42,8 +42,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--thrust-floors", default="0,-0.05",
                     help="thrust - drag over the weight a wingbeat must keep to count as held "
                          "(0: constant speed; the reference cruise runs at -0.025..-0.05)")
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--workers", type=int, default=2, help="processes (one speed each)")
+    ap.add_argument("--json", default=None, help="write the grid, the bests and every point here")
     return ap
 
 

@@ -106,7 +106,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--jitter", type=float, default=0.001,
                     help="largest change of the start's speed, m/s (default 0.001)")
     ap.add_argument("--seed", type=int, default=0, help="the draw of the speed changes")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=2, help="processes flying the runs")
     ap.add_argument("--db", default="bundled",
                     help="comma-separated databases (bundled: the bundled one)")
     ap.add_argument("--config", default=None,

@@ -62,10 +62,10 @@ def cycle_lift_to_drag(params: DoveParams, p: np.ndarray, speed: float, pitch_de
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--speeds", default="6,7,8")
-    ap.add_argument("--pitches", default="0,5,10")
-    ap.add_argument("--tables", default=",".join(TABLES))
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--speeds", default="6,7,8", help="headwinds, m/s")
+    ap.add_argument("--pitches", default="0,5,10", help="trunk pitches, deg")
+    ap.add_argument("--tables", default=",".join(TABLES), help="coefficient tables (default: all six)")
+    ap.add_argument("--json", default=None, help="write every run here")
     return ap
 
 

@@ -124,10 +124,11 @@ def _evaluate(x: np.ndarray, objective: str, wingbeats: int, skip: int,
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb", "steer"), default="cruise")
+    ap.add_argument("--objective", choices=("cruise", "climb", "steady-climb", "steer"), default="cruise",
+                    help="what the search maximises (see the module docstring)")
     ap.add_argument("--bound", type=float, default=3.0, help="capture spreads each way (default 3)")
-    ap.add_argument("--wingbeats", type=int, default=6)
-    ap.add_argument("--skip", type=int, default=2)
+    ap.add_argument("--wingbeats", type=int, default=6, help="wingbeats each candidate is flown")
+    ap.add_argument("--skip", type=int, default=2, help="wingbeats flown before measuring")
     ap.add_argument("--speed", type=float, default=7.0, help="the start's forward speed, m/s")
     ap.add_argument("--min-speed", type=float, default=3.0,
                     help="steer: the end speed it must keep, m/s (default 3)")
