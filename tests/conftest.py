@@ -32,29 +32,49 @@ def _clean_dispatcher_after_module():
     DISPATCHER.clear()
 
 
+def _x_sockets() -> set[str]:
+    """The X display sockets listening on this machine: files in /tmp/.X11-unix and Linux's
+    abstract ones (``@/tmp/.X11-unix/X<n>``), which another mount namespace (a container, a
+    private /tmp) shares with this one while its lock files and socket files stay invisible."""
+    try:
+        lines = Path("/proc/net/unix").read_text().splitlines()[1:]
+    except OSError:
+        return set()
+    return {ln.split()[-1].lstrip("@") for ln in lines if "/.X11-unix/X" in ln}
+
+
+def _display_taken(n: int) -> bool:
+    return (Path(f"/tmp/.X{n}-lock").exists() or Path(f"/tmp/.X11-unix/X{n}").exists()
+            or f"/tmp/.X11-unix/X{n}" in _x_sockets())
+
+
 def _start_xvfb() -> tuple[subprocess.Popen, int]:
     """Xvfb on a free display number in :91-:189. Choosing the number and starting the server
     hold a lock file, so two test processes (``pytest -n 2``) never pick the same number.
-    (Xvfb's own ``-displayfd`` choice gave a display that VTK then could not connect to under
-    that load.)"""
+    A number is free when no lock file, socket file or abstract socket names it; if the server
+    still exits at once (another X server took the number meanwhile), the next one is tried:
+    a client of that number would otherwise reach the other server, which may refuse it (VTK
+    then fell back to an EGL window no one sees). (Xvfb's own ``-displayfd`` choice gave a
+    display that VTK then could not connect to under that load.)"""
     with open("/tmp/flapsim-tests-xvfb.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             for n in range(91, 190):
-                if not Path(f"/tmp/.X{n}-lock").exists() and not Path(f"/tmp/.X11-unix/X{n}").exists():
-                    break
-            else:
-                raise RuntimeError("no free X display number in :91-:189")
-            proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            # the lock is held until the server has claimed the number
-            for _ in range(200):
-                if Path(f"/tmp/.X11-unix/X{n}").exists() or proc.poll() is not None:
-                    break
-                time.sleep(0.05)
+                if _display_taken(n):
+                    continue
+                proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x800x24", "-nolisten",
+                                         "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                # the lock is held until the server has claimed the number
+                for _ in range(200):
+                    if Path(f"/tmp/.X11-unix/X{n}").exists() or proc.poll() is not None:
+                        break
+                    time.sleep(0.05)
+                time.sleep(0.2)  # a server refused the number exits right after binding
+                if proc.poll() is None:
+                    return proc, n
+            raise RuntimeError("no free X display number in :91-:189")
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
-    return proc, n
 
 
 class XDisplay:
@@ -63,6 +83,18 @@ class XDisplay:
     def __init__(self, name: str) -> None:
         self.name = name
         self.procs: list[subprocess.Popen] = []
+
+    def env(self, **extra: str) -> dict:
+        """The environment of a process drawing on this display and nowhere else: DISPLAY
+        named explicitly (another X server may be the session's), no Wayland, MuJoCo's
+        viewer on GLFW's X11 library, VTK (pyvista) on an X window rather than its EGL
+        fallback, and pyvista not forced off screen."""
+        env = {k: v for k, v in os.environ.items()
+               if k not in ("WAYLAND_DISPLAY", "XDG_SESSION_TYPE", "PYVISTA_OFF_SCREEN")}
+        env.update(DISPLAY=self.name, MUJOCO_GL="glfw", PYGLFW_LIBRARY_VARIANT="x11",
+                   VTK_DEFAULT_OPENGL_WINDOW="vtkXOpenGLRenderWindow")
+        env.update(extra)
+        return env
 
     def spawn(self, args: list[str], env: dict) -> subprocess.Popen:
         proc = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
@@ -108,7 +140,7 @@ def xvfb_display():
         assert Path(f"/tmp/.X11-unix/X{n}").exists(), "Xvfb did not start within 10 s"
         # the socket appears before the server takes clients: under load a window opened at
         # once got "bad X server connection"; wait until a client is answered
-        env = dict(os.environ, DISPLAY=f":{n}")
+        env = display.env()
         for _ in range(100):
             ok = subprocess.run(["xdotool", "getdisplaygeometry"], env=env, capture_output=True,
                                 timeout=10).returncode == 0

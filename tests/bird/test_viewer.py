@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import time
@@ -49,7 +48,7 @@ def _bird_pixels(rgb: np.ndarray) -> np.ndarray:
 
 def _open_dove_viewer(xvfb_display, out: Path):
     """``flapsim view`` for 4 s on the virtual display: (the process, its window, its env)."""
-    env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
+    env = xvfb_display.env(PYTHONPATH=str(REPO))  # this display only, GLFW on X11
     app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli.main", "view", "--seconds", "4",
                               "--json", str(out)], env)
     return app, xvfb_display.window(app, env), env

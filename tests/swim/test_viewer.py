@@ -4,7 +4,6 @@ switch the control layers."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -29,7 +28,7 @@ def test_viewer_without_a_display_is_a_one_line_error(monkeypatch, capsys):
 def _open_swim_viewer(xvfb_display, out: Path, seconds: float):
     """``flapsim swim --viewer`` (crawl, basic layers, ``seconds`` paced to real time) on the
     virtual display: (the process, its window, the environment it runs in)."""
-    env = dict(os.environ, DISPLAY=xvfb_display.name, MUJOCO_GL="glfw", PYTHONPATH=str(REPO))
+    env = xvfb_display.env(PYTHONPATH=str(REPO))  # this display only, GLFW on X11
     app = xvfb_display.spawn(
         [sys.executable, "-m", "flapsim.cli.main", "swim", "--viewer", "--stroke", "crawl",
          "--seconds", f"{seconds:g}", "--layers", "basic", "--json", str(out)], env)
