@@ -639,15 +639,14 @@ def test_the_dove_holds_its_airspeed_in_a_crosswind_and_rides_out_a_side_gust():
 def test_speed_first_finishes_a_7_deg_climb_sooner_and_both_make_way():
     """80 m at 7 deg (the bundled database): giving up 0.05 rad of climb per m/s of missing
     airspeed, the dove is at the end within 1.5 x its flight time at 7 m/s (1.5 x 80 / 7 + 5 x
-    0.1075 = 17.7 s, the clock until session 16) and inside the 3 m tube; with independent
+    0.1075 = 17.7 s, the clock that tasks once allowed) and inside the 3 m tube; with independent
     speed and height loops it slows under the growing climb requests and makes way more slowly,
     though still faster than the 3 m/s the clock now allows for.
     Measured with the regression's wingbeats flown as answered (``refine=0``, as when speed
-    first was measured). Over four starts under 1 mm/s apart on an Intel Xeon (session 23):
-    speed first 15.7-16.4 s, 1.6-2.6 m off at most, 4.89-5.10 m/s of way; independent loops
-    4.43-4.69 m/s of way. Their verdict is a coin toss at the tube's edge (3.0-3.2 m off on
-    three of the four there; within it on an AMD EPYC, sessions 16-22), so it is not asserted:
-    the way made is."""
+    first was measured). Over four starts under 1 mm/s apart: speed first 15.7-16.4 s,
+    1.6-2.6 m off at most, 4.89-5.10 m/s of way; independent loops 4.43-4.69 m/s of way. Their
+    verdict is a coin toss at the tube's edge (3.0-3.2 m off on three of the four, within it
+    on other machines), so it is not asserted: the way made is."""
     from flapsim.bird.tasks.flight_tasks import MIN_WAY_SPEED, Task, fly_task
     from flapsim.bird.tasks.path_control import FlightPath
     from flapsim.bird.tasks.path_shapes import START_HEIGHT

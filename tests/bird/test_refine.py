@@ -157,10 +157,9 @@ def test_a_tight_circle_is_followed_with_the_simulated_corrections_and_lost_with
     """A 4 m level circle at 7 m/s needs 1.60 g (sqrt(1 + (v^2 / g r)^2)), past the 1.23 g
     the wing holds at that speed: the dove must slow into it and come back. With two
     corrections per wingbeat it stays within the paper's 3 m tube; with none it spirals out of
-    it. Measured on the bundled database over four starts under 1 mm/s apart (session 23, an
-    Intel Xeon): 1.18-1.37 m at most with the corrections, lost at wingbeats 24-32 (4.5-15.2 m)
-    without. (The 5 m circle this test flew until session 23 is at the edge without them:
-    lost on an AMD EPYC and on three of the four starts here, the unperturbed one completed
+    it. Measured on the bundled database over four starts under 1 mm/s apart: 1.18-1.37 m at
+    most with the corrections, lost at wingbeats 24-32 (4.5-15.2 m) without. (A 5 m circle is
+    at the edge without them: lost on three of four starts, the unperturbed one completed
     2.99 m off.)"""
     path = inclined_circle(radius_m=4.0, turns=1.0)
     without = fly_task(Task(path, speed=7.0), refine=0)

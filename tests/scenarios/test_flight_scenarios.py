@@ -186,14 +186,13 @@ def test_eval_follows_a_users_path_that_is_no_scenario(tmp_path, capsys):
 def test_eval_follows_a_users_3_m_circle_by_slowing_into_it(tmp_path):
     """The issue's tightest user path: a level 3 m circle from its first point (no lead-in,
     entered at 7 m/s). At 7 m/s it needs sqrt(1 + (49 / (9.81 * 3))^2) = 1.94 g; at 6 m/s
-    1.58 g, past the 1.39 g (a 3.8 m turn) the wing sustains there (scripts/
+    1.58 g, past the 1.39 g (a 3.8 m turn) the wing sustains there (studies/
     dove_turn_limit.py): a dove that follows it has flown it slower than 6 m/s on average.
 
-    One verdict here is a draw near the tube's edge (session 23, seven starts under 1 mm/s
-    apart on an Intel Xeon: with the corrections 1.91-2.20 m off at most on six, 3.59 m and
-    lost on one; without them lost on all seven, 3.6-15.6 m), so the verdicts are asserted
-    over five starts: the median start with the corrections stays in the 3 m tube, and
-    without them every start leaves it."""
+    One verdict here is a draw near the tube's edge (seven starts under 1 mm/s apart: with
+    the corrections 1.91-2.20 m off at most on six, 3.59 m and lost on one; without them
+    lost on all seven, 3.6-15.6 m), so the verdicts are asserted over five starts: the median
+    start with the corrections stays in the 3 m tube, and without them every start leaves it."""
     from flapsim.bird.tasks.flight_tasks import Task, fly_task
     from flapsim.bird.tasks.path_control import load_path
 
@@ -309,8 +308,8 @@ def test_the_modal_dove_survives_an_8_newton_push_backwards():
     8 N for 0.1 s (0.8 N s: 4.7 m/s taken from its 7) on the push scenarios' 60 m path,
     survives by their criterion: within the 10 m tube, the path's end reached, back within
     1.5 m of it. (The rigid dove's bundled database does not survive it: docs/flight.md.) The end's
-    distance is near that 1.5 m on some starts (session 23, seven starts under 1 mm/s apart on
-    an Intel Xeon: 0.91-1.48 m), so it is asserted over three starts' median; the tube and
+    distance is near that 1.5 m on some starts (seven starts under 1 mm/s apart: 0.91-1.48 m),
+    so it is asserted over three starts' median; the tube and
     the path's end on every one."""
     from flapsim.bird.tasks import path_shapes as paths
     from flapsim.bird.tasks.flight_tasks import Task, fly_task
@@ -562,7 +561,7 @@ def test_the_slow_sinusoid_flies_the_sharp_path_at_the_captures_speed(monkeypatc
 def test_a_users_path_is_told_when_its_turn_asks_more_lift_than_the_wing_holds(
         monkeypatch, capsys, tmp_path, radius, speed, feathers, slow):
     # the flight is stubbed: this is the note's arithmetic. The wing holds 1.23 g at 7 m/s and
-    # 1.35 / 1.39 g at 5 / 6 m/s (scripts/dove_turn_limit.py), so at 5.5 m/s 1.37 g. A level
+    # 1.35 / 1.39 g at 5 / 6 m/s (studies/dove_turn_limit.py), so at 5.5 m/s 1.37 g. A level
     # circle of r held at v needs sqrt(1 + (v^2 / g r)^2): 3 m at 7 m/s 1.94 g and 25 m 1.09 g;
     # at 5.5 m/s 3 m asks 1.45 g (over 1.37) and 4 m 1.30 g (under). The tightest turn the wing
     # holds is v^2 / (g sqrt(n^2 - 1)): 7.0 m at 7 m/s (the study's 6.9 m, from n unrounded),

@@ -211,7 +211,7 @@ def _fmt(v, digits: int = 3) -> str:
 def _beyond_wing(m: dict) -> str:
     """Where a path's held turn asks more lift than the wing holds at the speed asked, say so:
     the dove can follow it only by slowing into the turn, and near that limit it is lost from
-    some starts (docs/flight.md, "Flight tasks (issue #14): where they stand")."""
+    some starts (docs/flight.md)."""
     n = m.get("wing_load_factor")
     if n is None or m["sustained_turn_load_factor"] <= n:
         return ""
