@@ -1,5 +1,5 @@
-"""Issue 13: bad input is refused before any work, with one line and exit status 2;
-outputs are never half-written; batch failures give a non-zero status."""
+"""The command line's contract: bad input is refused before any work, with one line and exit
+status 2; outputs are never half-written; batch failures give a non-zero status."""
 
 import json
 import os

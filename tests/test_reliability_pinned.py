@@ -1,6 +1,5 @@
-"""Issue 13 item 7: behaviour the test audit found unprotected, each pinned against an
-independently derived number (and each checked to fail on a deliberate mutant of the
-code it protects; the mutants are listed in the issue's notes)."""
+"""Behaviour no other test protected, each pinned against an independently derived number
+(each checked to fail on a deliberate mutant of the code it protects)."""
 
 import json
 import math

@@ -23,7 +23,7 @@ def cap():
 def test_reference_set_is_labelled_synthetic_and_covers_the_paper_ranges(cap):
     assert cap.synthetic and "SYNTHETIC" in cap.source
     assert cap.rate_hz == 240.0
-    assert 140 <= cap.n_cycles <= 160  # issue: ~150 cycles
+    assert 140 <= cap.n_cycles <= 160  # the paper's capture set: ~150 wingbeats
     assert cap.with_mirror().n_cycles == 2 * cap.n_cycles
     # the paper's capture ranges (sec. 7), reached exactly by construction (1e-9: float)
     assert cap.steering_deg.min() == pytest.approx(-12.5) and cap.steering_deg.max() == \

@@ -17,8 +17,7 @@ from flapsim.bird.control.database import load_database
 from flapsim.bird.control.targets import CruiseTarget, target_state, trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight
-from flapsim.bird.flight.wingbeat import control_table
-from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE
+from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE, control_table
 from flapsim.core.errors import DataFileError
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)
@@ -95,7 +94,7 @@ def test_bundled_database_is_for_this_model_and_finished():
 
 
 def test_level_cruise_holds_altitude_speed_heading_from_a_roll_error(flight, controller, trim):
-    # the training issue's acceptance: 100 wingbeats from a 2 deg roll error within 0.5 m of
+    # a learned controller's cruise: 100 wingbeats from a 2 deg roll error within 0.5 m of
     # the start altitude, 0.5 m/s of 7 m/s and 5 deg of the start heading
     start_cruise(flight, controller.P0, roll_deg=2.0)
     target = CruiseTarget(trim, altitude=10.0, speed=7.0)

@@ -1,4 +1,6 @@
-"""Surface forces against analytic cases (SPEC 'The shared shape'; issue 2 item 6)."""
+"""Surface forces against analytic cases: a flat plate in uniform flow, moving or spinning, its
+torque, a falling plate's terminal velocity, the front-facing rule, the free-surface cut,
+friction, a Python flow plugin against the compiled one, and bad polygons refused."""
 
 import mujoco
 import numpy as np

@@ -181,7 +181,8 @@ def test_frequencies_match_linear_regime_simulation(mode_offset):
         mujoco.mj_step(model, data)
         times[k] = data.time
         eta[k] = phi_m @ tangent_difference(model, data.qpos, res.rest_qpos)
-    # Undamped, weightless, 1e-3 rad: nonlinear and RK4 errors are << 2% (issue target).
+    # Undamped, weightless, 1e-3 rad: nonlinear and RK4 errors are << 2% (the accuracy asked of
+    # the modal analysis).
     assert 1.0 / _measure_period(times, eta) == pytest.approx(f, rel=0.02)
 
 
@@ -206,7 +207,7 @@ def test_loop_frequency_matches_simulation_with_closure():
         mujoco.mj_step(model, data)
         times[k] = data.time
         eta[k] = phi_m @ tangent_difference(model, data.qpos, res.rest_qpos)
-    # The closure is a soft (stiff-solref) constraint in MuJoCo; 2% is the issue's target.
+    # The closure is a soft (stiff-solref) constraint in MuJoCo; 2% is the accuracy asked.
     assert 1.0 / _measure_period(times, eta) == pytest.approx(res.freqs_hz[mode], rel=0.02)
 
 

@@ -72,7 +72,7 @@ def test_tables_record_the_continuous_rules(tmp_path):
     ("crawl", 90.0, 0.04),
 ])
 def test_continuous_layer_follows_the_figure_of_eight_closer(stroke, seconds, margin):
-    # the ordering: mean distance from the path, all layers < basic + per-cycle
+    # each layer earns its place: mean distance from the path, all layers < basic + per-cycle
     def mean(layers):
         r = swim(stroke, seconds, target=figure_eight(5.0), layers=layers)
         m = _metrics(r)

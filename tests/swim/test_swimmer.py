@@ -1,6 +1,6 @@
 """The swimmer: floating with and without lungs, density sweep, strokes, stroke files.
 
-The stroke tests assert the issue's acceptance ranges on the defaults (20 s each; a
+The stroke tests assert human ranges (speed, stroke rate, head height) on the defaults (20 s each; a
 20-s swim takes ~0.2 s here).
 """
 
@@ -57,7 +57,7 @@ def breaststroke():
 
 
 def test_crawl_meets_the_human_range(crawl):
-    # issue #4 acceptance on the defaults, 20 s: 0.7-2.0 m/s forward (recreational to
+    # the default crawl, 20 s, swims at a human's speed: 0.7-2.0 m/s forward (recreational to
     # elite); measured 0.98 m/s at 0.8 cycles/s, 1.23 m per cycle
     assert 0.7 <= crawl["speed_m_s"] <= 2.0
     assert 0.6 <= crawl["stroke_rate_hz"] <= 1.0  # human crawl cycle rates
