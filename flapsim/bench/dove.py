@@ -333,7 +333,8 @@ def run_eval(args: argparse.Namespace) -> dict:
     out = {"target": "eval", "workers": workers, "runs": len(results), "wall_s": wall,
            "runs_wall_s": busy, "speedup": busy / wall, "parallel_efficiency": busy / wall / workers,
            "simulated_s": sim, "simulated_per_wall_s": sim / wall,
-           "failed": [r["scenario"] for r in results if not r.get("ok")], "predict": opts.predict,
+           "failed": [r["scenario"] for r in results if not r.get("ok")],
+           "statuses": {r["scenario"]: r.get("status") for r in results}, "predict": opts.predict,
            "quick": quick}
     print(f"flight evaluation suite (S0: {opts.predict}): {len(results)} runs in {wall:.0f} s on "
           f"{workers} workers "

@@ -91,7 +91,10 @@ def _check_controller(r: dict) -> None:
 
 
 def _check_eval(r: dict) -> None:
-    assert r["runs"] == 2 and r["failed"] == []  # --quick: the two cheapest scenarios, both run
+    # --quick: the two cheapest scenarios, each flown to a verdict (their short variants may
+    # lose the path: a verdict, not a failure of the run, which would say "failed")
+    assert r["runs"] == 2 and len(r["statuses"]) == 2
+    assert set(r["statuses"].values()) <= {"completed", "lost"}, r["statuses"]
     assert r["speedup"] == pytest.approx(r["runs_wall_s"] / r["wall_s"], rel=REL)
     assert _positive(r["simulated_s"])
 
