@@ -97,8 +97,7 @@ def test_free_flight_range_excess_is_the_joints_own_overshoot():
     from flapsim.bird.flight import cycle
     from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
     from flapsim.bird.flight.limits import free_flight_range_excess
-    from flapsim.bird.flight.wingbeat import reference_wingbeat
-    from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE
+    from flapsim.bird.flight.wingbeat import RANGE_TOLERANCE, reference_wingbeat
 
     fl = DoveFlight(Dove.load(), reference_wingbeat())
     try:

@@ -9,9 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from flapsim.bird.body.feather_dynamics import ModalFeathers, dove_feather_modes
-
 from flapsim.bird.body.drawing import FeatherDrawing, video_model
+from flapsim.bird.body.feather_dynamics import ModalFeathers, dove_feather_modes
 from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import UNDERSIDE
 from flapsim.fluid.coefficients import get_table

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from flapsim.bird.control.database import load_database
-from flapsim.bird.training.manifold import Manifold
-from flapsim.bird.training.manifold import WingbeatSet
+from flapsim.bird.training.manifold import Manifold, WingbeatSet
 from flapsim.cli.main import main
 
 

@@ -5,12 +5,23 @@ import numpy as np
 import pytest
 
 from flapsim.bird.flight import cycle
-from flapsim.bird.flight.dove_flight import pitch_roll
-from flapsim.bird.flight.wingbeat import N_PARAMS, join, p0, reference_wingbeat, split
-from flapsim.bird.training.sampling import Ellipses, SampleWorker, SamplingConfig, in_ranges, trajectory_bounds
+from flapsim.bird.flight.dove_flight import pitch_roll, pose_quat
+from flapsim.bird.flight.wingbeat import (
+    N_PARAMS,
+    join,
+    p0,
+    project_to_ranges,
+    reference_wingbeat,
+    split,
+)
 from flapsim.bird.training.manifold import WingbeatSet
-from flapsim.bird.flight.dove_flight import pose_quat
-from flapsim.bird.flight.wingbeat import project_to_ranges
+from flapsim.bird.training.sampling import (
+    Ellipses,
+    SampleWorker,
+    SamplingConfig,
+    in_ranges,
+    trajectory_bounds,
+)
 
 #: this module's flight keeps its feather forces registered from test to test (conftest)
 SHARED_FLIGHT = True
