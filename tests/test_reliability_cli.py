@@ -91,20 +91,24 @@ def test_outputs_are_checked_before_simulating(tmp_path, capsys, monkeypatch):
 
 
 def _no_work(monkeypatch, command):
-    def work(args):
+    def work(*args, **kwargs):
         raise AssertionError("worked before checking the outputs")
 
-    monkeypatch.setattr(f"flapsim.cli.commands.{command}.run", work)
+    if command == "eval":  # eval checks its folders in run(), before the runner starts
+        monkeypatch.setattr("flapsim.scenarios.runner.execute", work)
+    else:
+        monkeypatch.setattr(f"flapsim.cli.commands.{command}.run", work)
 
 
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="no /proc (not Linux)")
-def test_a_folder_where_no_file_can_be_made_is_refused_before_any_work(capsys, monkeypatch):
-    # /proc passes a permission-bits check (it is 0555 for everyone but writable for root),
-    # yet no file can be created in it: only creating the temporary proves an output writable
-    _no_work(monkeypatch, "fly")
-    one_line_error(capsys, cli.main(["fly", "--json", "/proc/x.json"]),
-                   "--json /proc/x.json: cannot create a file in /proc")
-    assert not Path("/proc/x.json").exists()
+@pytest.mark.parametrize("argv", [["fly", "--json", "/proc/x.json"],
+                                  ["eval", "--scenario", "plucked-3", "--plots", "/proc/x"]])
+def test_a_folder_where_no_file_can_be_made_is_refused_before_any_work(argv, capsys, monkeypatch):
+    # /proc passes a permission-bits check (root may write anywhere), yet no file can be
+    # created in it: only creating a file there proves an output (file or folder) writable
+    _no_work(monkeypatch, argv[0])
+    one_line_error(capsys, cli.main(argv), f"{argv[-2]} {argv[-1]}: cannot create a file in /proc")
+    assert not Path(argv[-1]).exists()
 
 
 def test_a_read_only_folder_is_refused_before_any_work(tmp_path, capsys, monkeypatch):

@@ -17,6 +17,7 @@ from pathlib import Path
 from flapsim.bird.control.config import ControllerConfig
 from flapsim.bird.tasks.config import PathControlConfig, load_control_config
 from flapsim.core.errors import InputError
+from flapsim.core.io import write_problem
 from flapsim.core.validate import add_input_arg
 
 
@@ -65,7 +66,8 @@ def controller_options(args: argparse.Namespace) -> tuple[ControllerConfig, Path
 
 def writable_dir(flag: str, value: str | None) -> str | None:
     """``value`` as a folder the command may create and write into (None stays None); a file
-    there, a missing parent or a parent not writable is a one-line error."""
+    there, a missing parent, or a parent in which no file can be created (tried) is a
+    one-line error."""
     if value is None:
         return None
     p = Path(value)
@@ -76,4 +78,7 @@ def writable_dir(flag: str, value: str | None) -> str | None:
         raise InputError(f"{flag} {value}: folder {parent} does not exist (create it first)")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {value}: folder {parent} is not writable")
+    problem = write_problem(parent / ".flapsim")  # the permission bits can say yes where no file can be made
+    if problem is not None:
+        raise InputError(f"{flag} {value}: cannot create a file in {parent} ({problem})")
     return str(p)
