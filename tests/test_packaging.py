@@ -50,3 +50,29 @@ def test_installed_layout_loads_every_bundled_model(wheel, tmp_path):
     expected = sum(len(list((ROOT / f).glob("*.xml"))) for f in ("bird_mjcf", "swimmer_mjcf",
                                                                   "creatures"))
     assert int(r.stdout.strip()) == expected
+
+
+def test_the_constraints_pin_every_requirement_within_its_allowed_range():
+    # constraints.txt (what CI and the README install) must pin each requirement of the
+    # package and its test extra to a version pyproject.toml allows: a pin outside the range
+    # would make `pip install -c constraints.txt -e ".[test]"` fail to resolve, a missing pin
+    # would let that package float
+    import tomllib
+
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+
+    root = Path(__file__).resolve().parents[1]
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    pins = {}
+    for line in (root / "constraints.txt").read_text().splitlines():
+        line = line.split("#")[0].strip()
+        if line:
+            name, version = line.split("==")
+            pins[canonicalize_name(name)] = version
+    assert "flapsim" not in pins
+    for text in project["dependencies"] + project["optional-dependencies"]["test"]:
+        req = Requirement(text)
+        name = canonicalize_name(req.name)
+        assert name in pins, f"{req.name} is not pinned in constraints.txt"
+        assert req.specifier.contains(pins[name]), f"{req.name}=={pins[name]} is outside {req.specifier}"
