@@ -20,11 +20,11 @@ ROOT = Path(__file__).resolve().parents[2]
 REL = 1e-9  # quotients of the JSON's own numbers: float rounding only
 
 
-def _bench(target: str, tmp_path: Path) -> dict:
+def _bench(target: str, tmp_path: Path, *extra: str) -> dict:
     out = tmp_path / f"{target}.json"
     env = dict(os.environ, PYTHONPATH=str(ROOT), MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     proc = subprocess.run([sys.executable, "-m", "flapsim.cli.main", "bench", target, "--quick",
-                           "--json", str(out)], cwd=tmp_path, env=env, capture_output=True,
+                           "--json", str(out), *extra], cwd=tmp_path, env=env, capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads(out.read_text())
@@ -85,6 +85,12 @@ def _check_controller(r: dict) -> None:
     m = r["measurements"]
     assert r["cost_over_base"] == pytest.approx(
         m["base"]["real_time_factor"] / m["learned"]["real_time_factor"], rel=REL)
+    # the look-ahead against the flight with the same corrections without it (a modal dove's
+    # default has none, the look-ahead needs one): the same flight, to the bit
+    twin = "learned" if r["lookahead_refine"] == r["refine"] else f"learned_refine{r['lookahead_refine']}"
+    assert r["lookahead_speedup"] == pytest.approx(
+        m["learned_lookahead"]["real_time_factor"] / m[twin]["real_time_factor"], rel=REL)
+    assert r["lookahead_same_flight"] is True
     for k, v in r["over_bare_rollout"].items():
         assert v == pytest.approx(m[k]["real_time_factor"] / m["bare_rollout"]["real_time_factor"],
                                   rel=REL)
@@ -109,3 +115,10 @@ def test_every_bench_target_is_smoke_tested():
 @pytest.mark.parametrize("target", sorted(BENCHES))
 def test_bench_target_runs_and_reports_its_ratios(target, tmp_path):
     CHECKS[target](_bench(target, tmp_path))
+
+
+@pytest.mark.parametrize("target", ["dove", "controller"])
+def test_the_modal_doves_bench_runs_and_reports_its_ratios(target, tmp_path):
+    r = _bench(target, tmp_path, "--feathers", "modal")
+    assert r["feathers"] == "modal"
+    CHECKS[target](r)
