@@ -29,7 +29,7 @@ from flapsim.bird.control.controller import bundled_database_path
 from flapsim.bird.control.database import load_database, read_header
 from flapsim.bird.tasks.config import PathControlConfig
 from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
-from flapsim.bird.training.train import run_header, train
+from flapsim.bird.training.train import run_header, same_entry, train
 from flapsim.core import environment
 from flapsim.core.errors import InputError
 from flapsim.core.parallel import ChunkExecutor, WorkerError, usable_cores
@@ -219,7 +219,7 @@ def is_bundled_run(config: SamplingConfig, n: int) -> bool:
     accepting it)."""
     db = load_database(bundled_database_path(config.feathers), require_finalized=True)
     ident = run_header(config, SampleWorker, "dove-phase1")
-    return db.n == n and all(db.header.get(k) == ident.get(k)
+    return db.n == n and all(same_entry(k, db.header.get(k), ident.get(k))
                              for k in ("kind", "worker", "config_class", "config", "seed"))
 
 

@@ -14,9 +14,11 @@ import pytest
 
 from flapsim.bird.control.database import DatabaseWriter, fields_spec, load_database
 from flapsim.bird.training.fake_worker import FakeConfig, FakeWorker, expected_samples
-from flapsim.bird.training.train import run_header, train
+from flapsim.bird.training.sampling import SamplingConfig
+from flapsim.bird.training.train import run_header, same_entry, train
 from flapsim.cli.main import main
 from flapsim.core.errors import DataFileError, InputError
+from flapsim.scenarios.runner import bundled_seed, is_bundled_run
 
 CFG = FakeConfig(seed=2, sleep_s=0.002)
 N = 120
@@ -284,3 +286,23 @@ def test_cli_trains_and_writes_json(capsys, tmp_path, monkeypatch, reference):
     assert out.read_bytes() != b""
     db = load_database(out, kind="dove-phase1")
     np.testing.assert_array_equal(db.index, expected_samples(CFG, N))
+
+
+def test_a_run_is_identified_by_its_classes_not_their_modules():
+    # a journal written before its worker moved to another module still resumes; another class
+    # of the same module does not
+    assert same_entry("worker", "flapsim.bird.sampling.SampleWorker",
+                      "flapsim.bird.training.sampling.SampleWorker")
+    assert not same_entry("worker", "flapsim.bird.training.sampling.SampleWorker",
+                          "flapsim.bird.training.sampling.OtherWorker")
+    assert not same_entry("seed", 1, 2)
+
+
+def test_the_bundled_database_is_recognised_as_its_documented_run():
+    # the bundled rigid database is `flapsim train --samples 10000 --pre-pitch-deg 10
+    # --pre-roll-deg 10 --seed 2 --float32` (its header records it); Table I reuses it
+    # instead of training it again only if its header is recognised as that run
+    config = SamplingConfig(seed=bundled_seed(), pitch_deg=10.0, roll_deg=10.0, feathers="rigid")
+    assert is_bundled_run(config, 10000)
+    assert not is_bundled_run(SamplingConfig(seed=bundled_seed() + 1, pitch_deg=10.0,
+                                             roll_deg=10.0, feathers="rigid"), 10000)

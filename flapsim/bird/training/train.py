@@ -81,9 +81,21 @@ def run_header(config: Any, worker_cls: type, kind: str = DEFAULT_KIND) -> dict:
         "config": config.to_dict(), "seed": int(config.seed), "flapsim_version": __version__}))
 
 
+#: header entries that name a class: a run is identified by the class, not by the module that
+#: holds it, so that a journal or database outlives a move of its worker to another module
+_CLASS_KEYS = ("worker", "config_class")
+
+
+def same_entry(key: str, old: Any, new: Any) -> bool:
+    """Whether two run headers agree on ``key`` (classes compared by their own name)."""
+    if key in _CLASS_KEYS and isinstance(old, str) and isinstance(new, str):
+        return old.rpartition(".")[2] == new.rpartition(".")[2]
+    return canonical_json(old) == canonical_json(new)
+
+
 def _check_same_run(old: dict, new: dict, out: Path) -> None:
     for key in _SAME_RUN:
-        if canonical_json(old.get(key)) != canonical_json(new.get(key)):
+        if not same_entry(key, old.get(key), new.get(key)):
             if key == "config":
                 a, b = old.get("config") or {}, new.get("config") or {}
                 diff = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
