@@ -249,7 +249,7 @@ def paper_protocol(o: EvalOptions) -> EvalOptions:
     answer flown as it is from P0 every wingbeat with the paper's fixed neighbourhood, the
     bank of the wingbeat's end, the trim's angle of attack in turns, the speed asked
     everywhere, independent speed and height loops, and the dove's default bank cap (Table
-    I's figure of eight flies the same at 45 and 60 deg: docs/flight_log.md, "A 60 deg bank
+    I's figure of eight flies the same at 45 and 60 deg: docs/design/flight.md, "A 60 deg bank
     by default")."""
     dove = PathControlConfig.for_dove(o.feathers)
     controller = o.controller if o.controller is not None else _library_controller(o)

@@ -93,7 +93,8 @@ class FeatherDrawing:
                 raise ModelError("the feather drawing model does not match the dove's qpos layout "
                                  "(a dove not built by Dove.load(feathers='modal'))")
             self.ix = np.arange(dove.model.nq)
-        """``frame[ix]`` is this model's ``qpos`` (:meth:`~flapsim.bird.flight.dove_flight.DoveFlight.frame`)."""
+        """``frame[ix]`` is this model's ``qpos``
+        (:meth:`~flapsim.bird.flight.dove_flight.DoveFlight.frame`)."""
         self.modal = ModalFeathers(m, modes, _drawing_table(), 1.0)
         self.vertadr = np.array([m.flex_vertadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, fm.name)]
                                  for fm in modes])

@@ -35,12 +35,12 @@ MAX_REFINE = 5
 #: quantiles, ``clip_request``), or ``full``, the target itself.
 REFINE_GOALS = ("reachable", "full")
 
-#: The learned controller's default :attr:`ControllerConfig.carry`, per dove (docs/flight_log.md,
+#: The learned controller's default :attr:`ControllerConfig.carry`, per dove (docs/design/flight.md,
 #: "Carrying the last wingbeat"): measured over five databases each; with modal feathers
 #: 0.4 follows the figure of eight closer but survives fewer pushes, so they keep 0.
 DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
 
-#: Simulated corrections per wingbeat (:attr:`ControllerConfig.refine`) by dove (docs/flight_log.md,
+#: Simulated corrections per wingbeat (:attr:`ControllerConfig.refine`) by dove (docs/design/flight.md,
 #: "Wingbeats checked by simulation"): 2 for rigid feathers,
 #: measured over five databases at 7 m/s (level circles of 3-8 m both ways followed 31 of 50
 #: times against 8; 6 and 8 N pushes from four sides survived 40 of 40 against 36; the suite
@@ -51,9 +51,9 @@ DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
 DEFAULT_REFINE = {"rigid": 2, "modal": 0}
 
 #: :attr:`ControllerConfig.refine_goal` by dove. ``reachable`` was measured on the rigid dove
-#: and not made its default (docs/flight_log.md, "Corrections aimed at what a wingbeat can reach": 17 of
-#: the 22 scenarios as ``full``, but 8 N rather than 10 N pushes from all six directions, and
-#: 76 of 100 user-path starts against 83).
+#: and not made its default (docs/design/flight.md, "Corrections aimed at what a wingbeat can
+#: reach: not kept": 17 of the 22 scenarios as ``full``, but 8 N rather than 10 N pushes from
+#: all six directions, and 76 of 100 user-path starts against 83).
 DEFAULT_REFINE_GOAL = {"rigid": "full", "modal": "full"}
 
 #: :attr:`ControllerConfig.lookahead`'s modes.

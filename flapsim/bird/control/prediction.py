@@ -57,7 +57,7 @@ class S0Predictor:
     6.995-7.005 m/s it completes 6 of 7 runs (lost at 7.003), this predictor 2 of 7, and
     Gaussian errors of 1-100 % of the typical miss added to the simulated S0 lose it in 1-3
     of 3 seeds. An S0 model fitted online on the flight's own simulated wingbeats (joint state
-    and the last wingbeat as inputs) halved the misses and completed 1 of 7: not kept.
+    and the last wingbeat as inputs) halved the misses and completed 1 of 7, so it is not offered.
     """
 
     regressor: Regressor

@@ -12,7 +12,7 @@ samples' mirror images.
   the neighbours did. Its default k is 2 % of the database, the largest of the paper's
   Table I sweep (:data:`DEFAULT_K_SHARE`): a fit of 9 coefficients per parameter needs more
   neighbours than an average, and with 0.5 % the controller depended on the database's
-  random draw (docs/flight_log.md, "How much the database's random draw matters").
+  random draw (docs/design/flight.md, "How much the database's random draw matters").
 * requests are first clipped, per dimension, to the [2 %, 98 %] quantiles of the
   database's dS (``clip_request``, :data:`DEFAULT_CLIP_REQUEST`): the local fit is only
   trusted where its samples are.

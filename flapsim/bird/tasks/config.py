@@ -51,12 +51,12 @@ class PathControlConfig:
     the paper's; docs/flight.md)."""
     climb_per_speed_deficit: float = DEFAULT_CLIMB_PER_SPEED_DEFICIT["rigid"]
     """Speed first: the climb asked drops this much per m/s of airspeed below the speed asked,
-    0..1 rad s/m (0: independent speed and height loops, the paper's; docs/flight_log.md, "Speed
-    first")."""
+    0..1 rad s/m (0: independent speed and height loops, the paper's; docs/design/flight.md, "Speed
+    first: off")."""
     turn_load_factor: float = float(PathTarget.turn_load_factor)
     """Slow down ahead of turns that would need more than this load factor at the speed asked,
     to the speed where they need it, 0 or above 1 and at most 5 g (0: never, the paper's;
-    docs/flight_log.md, "Slowing for tight turns")."""
+    docs/design/flight.md, "Slowing for tight turns: off")."""
     turn_speed_floor: float = float(PathTarget.turn_speed_floor)
     """With turn_load_factor, the lowest speed asked for a turn, 3..12 m/s, never above the
     speed asked (the bundled database's dove loses 6 m circles at 6 m/s)."""

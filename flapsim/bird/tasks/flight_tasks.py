@@ -34,44 +34,37 @@ from flapsim.bird.tasks.path_control import FlightPath, PathTarget, path_metrics
 from flapsim.core.errors import InputError, SimulationError
 
 #: The path target's default extra angle of attack per g of a turn's load factor, deg, per
-#: dove (:attr:`~flapsim.bird.tasks.path_control.PathTarget.aoa_per_g_deg`; docs/flight_log.md, "Carrying the last
-#: wingbeat" and "More angle of attack in turns, measured again"): 30 for the rigid dove from
-#: session 12 (its carry, five databases, no corrections), 40 since session 20, measured with
-#: the corrections and the 0.2 s bank lead over starts under 1 mm/s apart (the ten user paths
-#: and the level and 15 deg climbing circles: 108 of 120 completed against 98 with 30, 62 with
-#: 20; over three database draws 219 of 360 against 181, and 217 with 50). Modal feathers keep
-#: 0 with their carry of 0.
+#: dove (:attr:`~flapsim.bird.tasks.path_control.PathTarget.aoa_per_g_deg`): 40 for the rigid
+#: dove completes more of the ten user paths and the level and 15 deg climbing circles over
+#: starts under 1 mm/s apart than 30, 20 or 50 (docs/design/flight.md, "More angle of attack
+#: in turns: 40 deg per g"). Modal feathers keep 0 with their carry of 0.
 DEFAULT_AOA_PER_G_DEG = {"rigid": 40.0, "modal": 0.0}
 
 #: How far ahead the path target asks the bank, s, per dove
-#: (:attr:`~flapsim.bird.tasks.path_control.PathTarget.bank_lead_s`; docs/flight_log.md, "How firm a verdict is"):
-#: measured for the rigid dove over starts under 1 mm/s apart (the ten user paths and the
-#: level and 15 deg climbing circles, 10 starts each); modal feathers keep the 0.3 s they
-#: were measured with.
+#: (:attr:`~flapsim.bird.tasks.path_control.PathTarget.bank_lead_s`; docs/design/flight.md,
+#: "Asking the bank ahead"): measured for the rigid dove over starts under 1 mm/s apart (the
+#: ten user paths and the level and 15 deg climbing circles, 10 starts each); modal feathers
+#: keep the 0.3 s they were measured with.
 DEFAULT_BANK_LEAD_S = {"rigid": 0.2, "modal": 0.3}
 
 #: The path target's default climb given up per m/s of missing airspeed, rad s/m, per dove
-#: (:attr:`~flapsim.bird.tasks.path_control.PathTarget.climb_per_speed_deficit`; docs/flight_log.md, "Speed first"):
-#: 0 for both, measured over the five rigid databases (0.1 and 0.05 complete the 7 deg climb
-#: and one scenario more on the bundled database, but over the five 14.2 and 14.8 of 22
-#: against 14.8, and seed 4 loses the figure of eight with either).
+#: (:attr:`~flapsim.bird.tasks.path_control.PathTarget.climb_per_speed_deficit`;
+#: docs/design/flight.md, "Speed first: off"): 0 for both; 0.1 and 0.05 do no better over the
+#: five rigid databases.
 DEFAULT_CLIMB_PER_SPEED_DEFICIT = {"rigid": 0.0, "modal": 0.0}
 
 #: The largest bank the path target asks, deg, per dove
-#: (:attr:`~flapsim.bird.tasks.path_control.PathTarget.max_bank_deg`; docs/flight_log.md, "A 60 deg bank by
-#: default (session 26)"): 60 for the rigid dove since session 26. Over starts under 1 mm/s
-#: apart it steers the sharp sinusoid wider than the capture on both sides in 15 of 20 (45 deg:
-#: 1 of 10), and the rest holds within the counts' noise: the ten user paths 265 of 300 against
-#: 268 over three draws, the level and 15 deg climbing circles 8 and 6 of 10 against 9 and 6,
-#: the whole suite's verdicts and the figure of eight's metrics unchanged. Modal feathers keep
-#: the 45 deg they were measured with.
+#: (:attr:`~flapsim.bird.tasks.path_control.PathTarget.max_bank_deg`; docs/design/flight.md,
+#: "A 60 deg bank by default"): 60 for the rigid dove steers the sharp sinusoid wider than the
+#: capture on both sides in 15 of 20 starts (45 deg: 1 of 10) with the rest of the suite
+#: unchanged. Modal feathers keep the 45 deg they were measured with.
 DEFAULT_MAX_BANK_DEG = {"rigid": 60.0, "modal": 45.0}
 
 #: The reference wingbeat's period, s (the capture's mean cycle, 0.1076 s): the unit of the
 #: flight time a task allows beyond its path's own.
 REFERENCE_PERIOD_S = 0.1075
 
-#: The most lift the rigid dove's wing holds at constant speed at 7-8 m/s, in g (docs/flight_log.md,
+#: The most lift the rigid dove's wing holds at constant speed at 7-8 m/s, in g (docs/design/flight.md,
 #: "Where the tight turns and steep climbs fail": ``studies/dove_turn_limit.py``,
 #: :mod:`flapsim.bird.flight.limits`). The time a task allows counts a turn tighter than that allows
 #: at the speed asked at the speed where it does (a 3.6 m circle: 5.0 m/s, not 7): a bird
@@ -97,7 +90,7 @@ def wing_load_factor(speed: float) -> float | None:
 #: The slowest average way (m/s along the path) the clock accepts: a task allows at least its
 #: path's length at this speed. Climbing pigeons fly 2.9-4.9 m/s (Berg & Biewener 2008, J Exp
 #: Biol 211:1120), and the dove, short of power on a climb, slows as they do: on 80 m at 7 deg
-#: it stays within 1.44 m of the path at 3.7 m/s on average (bundled database, session 16),
+#: it stays within 1.44 m of the path at 3.7 m/s on average (bundled database),
 #: and 1.5x the flight time at 7 m/s (17.7 s) called that lost at 70 of 80 m. A bird slower than
 #: this on average is not making way.
 MIN_WAY_SPEED = 3.0
@@ -212,7 +205,8 @@ class Task:
     and height loops, the paper's)."""
     turn_load_factor: float = 0.0
     """The speed asked drops ahead of turns that would need more than this load factor at
-    ``speed`` (0: no slowing, the paper's; :attr:`~flapsim.bird.tasks.path_control.PathTarget.turn_load_factor`)."""
+    ``speed`` (0: no slowing, the paper's;
+    :attr:`~flapsim.bird.tasks.path_control.PathTarget.turn_load_factor`)."""
     turn_speed_floor: float | None = None
     """The lowest speed asked for a turn, m/s (None: the path target's, 6.5 m/s, or ``speed``
     when that is lower)."""
@@ -379,9 +373,9 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
     # the wing holds at that speed at the speed where it holds them (WING_LOAD_FACTOR), and
     # never less than the path at MIN_WAY_SPEED (a bird that slows on a climb, as it must
     # short of power, is not lost by the clock either), plus five reference wingbeats. A
-    # budget in wingbeats of the reference's period gave a controller with shorter wingbeats
-    # less time (session 12: a faster-beat database's 0.095 s wingbeats had 11.9 s for a 60 m
-    # path where the bundled one's had 12.5 s)
+    # budget in wingbeats of the reference's period would give a controller with shorter
+    # wingbeats less time (0.095 s wingbeats: 11.9 s for a 60 m path where the bundled
+    # database's have 12.5 s)
     t_budget = (max(1.5 * target.flight_time(wing_load_factor=WING_LOAD_FACTOR),
                     task.path.length / MIN_WAY_SPEED) + 5 * REFERENCE_PERIOD_S)
     n_max = task.max_wingbeats or int(np.ceil(3.0 * t_budget / REFERENCE_PERIOD_S))

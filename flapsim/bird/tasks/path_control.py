@@ -309,7 +309,7 @@ class PathTarget:
     and the path loop overshoots: pushed 8 N sideways, the bundled database's dove swung
     across the path in growing arcs (rolls of +-60 deg) and was lost; asking ahead it returned
     to the path. Eight databases, the whole suite: 0.2 s, 0.3 s and 0.4 s against none
-    (docs/flight_log.md, "Asking the bank ahead")."""
+    (docs/design/flight.md, "Asking the bank ahead")."""
     max_climb_deg: float = 15.0
     """Largest climb/descent angle asked, deg."""
     climb_per_speed_deficit: float = 0.0
@@ -323,7 +323,7 @@ class PathTarget:
     factor above 1, deg (:func:`~flapsim.bird.control.targets.target_state`'s ``aoa_per_g``; 0: the
     level trim's angle of attack in every turn, the paper's). Tasks default to the dove's
     :data:`~flapsim.bird.tasks.flight_tasks.DEFAULT_AOA_PER_G_DEG` (40 for rigid feathers, with the
-    controller's carry; docs/flight_log.md, "Carrying the last wingbeat")."""
+    controller's carry; docs/design/flight.md, "Carrying the last wingbeat")."""
     turn_load_factor: float = 0.0
     """Slowing for tight turns (0, the default: the speed asked is ``speed`` everywhere, the
     paper's). Otherwise ahead of a turn the speed asked drops to ``sqrt(g r sqrt(n^2 - 1))``,

@@ -321,7 +321,8 @@ def _table1(args: argparse.Namespace, opts: scenarios.EvalOptions) -> dict:
     cache = Path(writable_dir("--cache", args.cache))
     cache.mkdir(exist_ok=True)
     # the bundled database's sampling (phase 1, pre-states within 10 deg) and, unless asked
-    # otherwise, its seed: one draw of the databases, whose spread docs/flight_log.md measures
+    # otherwise, its seed: one draw of the databases, whose spread docs/design/flight.md
+    # measures ("How much the database's random draw matters")
     seed = (args.table1_seed if args.table1_seed is not None
             else runner.bundled_seed(opts.feathers))
     dbs = runner.table1_databases(sizes, cache, seed, opts.feathers,
