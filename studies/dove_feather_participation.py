@@ -8,7 +8,7 @@ flight, all feathers pooled, 4-mode run), and for each mode count: lift/weight, 
 primaries' RMS tip deflection and twist, and the cost per step (bare ``mj_step``).
 The modes ride MuJoCo joints here (``ModalParams(integration="joints")``: their coordinates
 are in the recorded ``qpos``); the engine's integration gives the same shares (its tip
-deflections follow the joints', ``tests/bird/test_modal_feathers.py``).
+deflections follow the joints', ``tests/bird/body/test_feather_dynamics.py``).
 """
 
 from __future__ import annotations

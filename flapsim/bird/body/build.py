@@ -5,7 +5,7 @@
 
 Writes the model (default: the bundled ``bird_mjcf/dove.xml`` the package loads), then compiles
 it and prints its mass, span, wing area and DOF counts. The bundled file is this generator's
-output, byte for byte (``tests/bird/test_build.py``): edit ``dove.toml`` or
+output, byte for byte (``tests/bird/body/test_build.py``): edit ``dove.toml`` or
 :func:`flapsim.bird.body.model.build_xml`, never the XML, then regenerate it. The synthetic
 capture the flight reads has its own generator: ``python -m flapsim.bird.flight.synthetic_capture``.
 """

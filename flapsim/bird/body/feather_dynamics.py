@@ -38,7 +38,7 @@ the bone (fully coupled); the kernel puts drag and lift on the deformed triangle
 them to the bone and the modes. The twist of the primaries stays on their MuJoCo hinges in the
 skeleton (spring, damper, one-sided range). It costs ~1.8x a rigid step (the modes' bodies
 and DOF); it is kept as the reference the engine is checked against
-(``tests/bird/test_modal_feathers.py``: the tip deflection in flight).
+(``tests/bird/body/test_feather_dynamics.py``: the tip deflection in flight).
 """
 
 from __future__ import annotations
@@ -242,7 +242,7 @@ _C2, _C4, _C6, _C8, _C10, _C12, _C14 = (-1 / 2, 1 / 24, -1 / 720, 1 / 40320, -1 
 @njit(cache=True, inline="always", fastmath=FASTMATH)
 def _cos_sin(a):
     """(cos a, sin a): a polynomial for |a| < 1/2 (the bends and twists of flight, below
-    0.1 rad in the base flight; within 2 ulp of libm's, ``tests/bird/test_modal_kernel.py``),
+    0.1 rad in the base flight; within 2 ulp of libm's, ``tests/bird/body/test_feather_kernel.py``),
     libm beyond. A third of the warp's cost with libm's sin and cos."""
     if -0.5 < a < 0.5:
         a2 = a * a

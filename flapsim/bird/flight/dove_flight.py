@@ -403,7 +403,7 @@ def pitch_roll(R: np.ndarray) -> tuple[float, float]:
     ``R``'s columns are the body axes in world coordinates. Pitch is the forward axis's
     elevation above the horizontal (+ nose up). Roll is the left axis's elevation (+ left
     wing up = right wing down): a right-handed rotation by +r about the body's forward x
-    axis from level gives roll +r (``tests/bird/test_flight.py`` checks the sign).
+    axis from level gives roll +r (``tests/bird/flight/test_dove_flight.py`` checks the sign).
     """
     fwd, left = R[:, 0], R[:, 1]
     pitch = float(np.arcsin(np.clip(fwd[2], -1, 1)))

@@ -13,7 +13,7 @@ noise, and the stream is sampled at 240 Hz like the paper's capture:
   beats wider, the inside wing is retracted and pronated (Ros et al. 2015).
 
 Regenerate the data file with ``python -m flapsim.bird.flight.synthetic_capture [--seed 2013]
-[--out FILE]``; the bundled file is its output (``tests/bird/test_build.py`` compares every entry).
+[--out FILE]``; the bundled file is its output (``tests/bird/body/test_build.py`` compares every entry).
 """
 
 from __future__ import annotations

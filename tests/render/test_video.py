@@ -71,7 +71,7 @@ def test_a_video_renders_after_a_pyvista_picture_in_the_same_process(tmp_path):
         pytest.skip("the terminated display is EGL's; this process renders with "
                     f"MUJOCO_GL={os.environ['MUJOCO_GL']}")
     code = f"XML = {XML!r}\nOUT = {str(tmp_path)!r}\n" + AFTER_PYVISTA
-    env = dict(os.environ, MUJOCO_GL="egl", PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    env = dict(os.environ, MUJOCO_GL="egl", PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     env.pop("DISPLAY", None)
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                           timeout=300)

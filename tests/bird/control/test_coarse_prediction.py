@@ -99,7 +99,7 @@ def test_coarse_s0_is_within_a_few_percent_of_the_databases_spread():
     spread = load_database(bundled_database_path()).arrays["dS"].std(0)
     fl = DoveFlight(Dove.load())
     try:
-        # carry 0: every reference is P0 itself (the carried one: test_carry.py)
+        # carry 0: every reference is P0 itself (the carried one: test_carried_wingbeat.py)
         ctl = load_controller(fl, predict="coarse", carry=0.0)
         assert ctl.predict == "coarse" and isinstance(ctl.predictor, CoarsePredictor)
         trim = trim_of_base_flight(fl, ctl.P0)

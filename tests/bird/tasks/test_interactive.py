@@ -13,7 +13,7 @@ import pytest
 
 from flapsim.cli import main as cli
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def test_view_without_a_display_is_a_one_line_error(monkeypatch, capsys):

@@ -12,7 +12,7 @@ import pytest
 
 from flapsim.cli import main as cli
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 NO_GL_LIBS = "import ctypes.util; ctypes.util.find_library = lambda name: None; "

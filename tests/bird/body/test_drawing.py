@@ -144,7 +144,7 @@ def test_a_video_frame_shows_the_bend(tmp_path):
     pytest.importorskip("imageio")
     out = tmp_path / "frames.npz"
     code = (f"import sys; sys.path.insert(0, {str(os.path.dirname(__file__))!r}); "
-            f"import test_modal_drawing as t; t._render_rest_and_bent({str(out)!r})")
+            f"import test_drawing as t; t._render_rest_and_bent({str(out)!r})")
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                          timeout=300)
