@@ -14,7 +14,7 @@ from flapsim.core.loading import load_model
 from flapsim.fluid.flow import FlowField, Uniform
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
 
-ROOT = pathlib.Path(__file__).resolve().parents[3]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 FREE_PLATE = """<mujoco><option gravity="0 0 0" timestep="0.001"/><worldbody>
   <body name="plate" pos="0 0 1"><freejoint/>

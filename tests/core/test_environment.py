@@ -1,6 +1,5 @@
 """What a result was computed with: in every command's JSON, and in an eval journal's key."""
 
-import argparse
 import json
 import platform
 
@@ -8,10 +7,10 @@ import mujoco
 import numpy as np
 import scipy
 
-from flapsim import __version__, cli
-from flapsim.cli.commands import eval as eval_cmd
+from flapsim import __version__
+from flapsim.cli.main import main as cli_main
 from flapsim.core import environment
-from flapsim.scenarios import EvalOptions
+from flapsim.scenarios import EvalOptions, runner
 
 
 def test_versions_are_the_imported_packages():
@@ -26,22 +25,22 @@ def test_versions_are_the_imported_packages():
 
 def test_every_command_json_names_the_packages(tmp_path):
     out = tmp_path / "l.json"
-    assert cli.main(["eval", "--list", "--json", str(out)]) == 0
+    assert cli_main(["eval", "--list", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["environment"]["numpy"] == np.__version__
 
 
 def test_an_eval_journal_of_other_packages_is_not_resumed(tmp_path, monkeypatch):
     # the same runs under another numpy may fly otherwise: their journal must not be read back
-    args = argparse.Namespace(json=str(tmp_path / "r.json"))
+    json_path = str(tmp_path / "r.json")
     runs = [("wind-steady", EvalOptions(quick=True))]
-    j = eval_cmd.open_journal(args, runs)
+    j = runner.open_journal(json_path, runs)
     j.open({})
     j.add(0, {"status": "completed"})
     j.close()
-    assert eval_cmd.open_journal(args, runs).load() == {0: {"status": "completed"}}
+    assert runner.open_journal(json_path, runs).load() == {0: {"status": "completed"}}
     real = environment.versions
     monkeypatch.setattr(environment, "versions", lambda: {**real(), "numpy": "0.0.1"})
-    other = eval_cmd.open_journal(args, runs)
+    other = runner.open_journal(json_path, runs)
     assert other.load() == {} and other.stale
 
 
@@ -59,7 +58,7 @@ def test_the_processor_is_named_where_linux_says_it():
 
 
 def test_version_names_the_packages(capsys):
-    assert cli.main(["--version"]) == 0
+    assert cli_main(["--version"]) == 0
     out = capsys.readouterr().out.strip()
     assert out.startswith(f"flapsim {__version__} (python {platform.python_version()}, ")
     assert f"numpy {np.__version__}" in out and f"mujoco {mujoco.__version__}" in out

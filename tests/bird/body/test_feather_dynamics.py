@@ -8,8 +8,8 @@ import pytest
 
 from flapsim.bird.body.feather_dynamics import ModalFeathers, clamped_feather_xml, dove_feather_modes
 from flapsim.bird.body.feather_modes import ModalParams, ShaftBeam, euler_bernoulli_tip_deflection
-from flapsim.bird.body.inertia import _Inertia, _inertial_xml
-from flapsim.bird.body.model import Dove
+from flapsim.bird.body.inertia import _Inertia
+from flapsim.bird.body.model import Dove, _inertial_xml
 from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, flight_metrics, fly
 from flapsim.fluid.coefficients import get_table
