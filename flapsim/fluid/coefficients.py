@@ -286,6 +286,63 @@ def dove_revolving(cd0: float = 0.05) -> CoefficientTable:
     )
 
 
+#: A spread bird wing's attached-flow section, gliding (Tucker & Heine 1990, J Exp Biol
+#: 149:469, Harris hawk): lift slope, static CL max and profile drag at CL 0.6. The slope is
+#: thin-aerofoil 2 pi reduced by 0.8 for a feathered section at Re ~ 3e4 (the same factor as
+#: the reference data's attached polar; Withers 1981, J Exp Biol 90:143: bird-wing sections
+#: reach CL 0.8-1.6 within 15-20 deg).
+BIRD_LIFT_SLOPE = 2.0 * np.pi * 0.8
+BIRD_CL_MAX_STATIC = 1.5
+BIRD_PROFILE_CD_AT_CL06 = 0.03
+BIRD_PROFILE_CD0 = 0.02
+
+
+def bird_wing(blend_end_deg: float = 30.0) -> CoefficientTable:
+    """A bird wing's section: attached flow to its stall, then the revolving dove wing.
+
+    Up to the stall, CL = :data:`BIRD_LIFT_SLOPE` a, reaching :data:`BIRD_CL_MAX_STATIC` (1.5,
+    Tucker & Heine's 1.4-1.6) at 17.1 deg, with a profile drag polar ``CD0 + kp CL^2``:
+    :data:`BIRD_PROFILE_CD0` (0.02) at zero lift and :data:`BIRD_PROFILE_CD_AT_CL06` (0.03,
+    Tucker & Heine) at CL 0.6. This is the section's own drag: the wing's induced drag is
+    not in the table (a quasi-steady table that folds it in, as the revolving-wing fits do,
+    would count it again where the engine models the wake's downwash). Past the stall the
+    lift and drag blend linearly in angle into :func:`dove_revolving` by ``blend_end_deg``
+    and follow it from there: the leading-edge-vortex plateau of revolving dove and pigeon
+    wings (CL max 1.64 near 45 deg, Usherwood 2009, Exp Fluids 46:991; L/D 3.33 at the
+    46 deg of mid-downstroke, Crandell & Tobalske 2011, J Exp Biol 214:1867), and normal-force
+    drag at 90 deg. The section is symmetric (no camber): CL is odd about 90 deg, as for every
+    table here. The robofly fits (:func:`dickinson1999_profile`, Re ~ 10^2) give CD 0.05-0.4
+    at zero lift; a bird wing's section at Re ~ 3e4 is 2.5-20x cleaner there.
+    """
+    half = (N_SAMPLES + 1) // 2
+    a = _A[:half]
+    a_deg = AOA_DEG[:half]
+    stall_deg = float(np.rad2deg(BIRD_CL_MAX_STATIC / BIRD_LIFT_SLOPE))
+    if not stall_deg < blend_end_deg <= 60.0:
+        raise InputError(f"bird_wing: blend_end_deg must be in ({stall_deg:.1f}, 60] deg, "
+                         f"got {blend_end_deg}")
+    kp = (BIRD_PROFILE_CD_AT_CL06 - BIRD_PROFILE_CD0) / 0.6**2
+    cl_att = BIRD_LIFT_SLOPE * a
+    cd_att = BIRD_PROFILE_CD0 + kp * cl_att**2
+    rev = dove_revolving()
+    t = np.clip((a_deg - stall_deg) / (blend_end_deg - stall_deg), 0.0, 1.0)
+    at_stall = min(int(np.searchsorted(a_deg, stall_deg)), half - 1)
+    # past the stall the attached line is held at its stall value while it blends away
+    cl_hold = np.where(a_deg <= stall_deg, cl_att, cl_att[at_stall])
+    cd_hold = np.where(a_deg <= stall_deg, cd_att, cd_att[at_stall])
+    cl = (1.0 - t) * cl_hold + t * rev.cl[:half]
+    cd = (1.0 - t) * cd_hold + t * rev.cd[:half]
+    full_cl, full_cd = _mirror(cl, cd)
+    return CoefficientTable(
+        "bird_wing" if blend_end_deg == 30.0 else f"bird_wing_blend_{blend_end_deg:g}",
+        full_cl, full_cd,
+        f"attached lift {BIRD_LIFT_SLOPE:.2f}/rad to CL {BIRD_CL_MAX_STATIC} at {stall_deg:.1f} deg, "
+        f"profile drag {BIRD_PROFILE_CD0} + {kp:.4f} CL^2 (Tucker & Heine 1990 J Exp Biol 149:469); "
+        f"blended by {blend_end_deg:g} deg into dove_revolving (Usherwood 2009; Crandell & "
+        "Tobalske 2011)",
+    )
+
+
 TABLES: dict[str, Callable[[], CoefficientTable]] = {
     "flat_plate": flat_plate,
     "feather_stall": feather_stall,
@@ -293,6 +350,7 @@ TABLES: dict[str, Callable[[], CoefficientTable]] = {
     "dickinson1999_lowdrag": lambda: dickinson1999(cd0=0.05),
     "dickinson1999_profile": dickinson1999_profile,
     "dove_revolving": dove_revolving,
+    "bird_wing": bird_wing,
     "bluff_body": bluff_body,
     "wang2004": wang2004,
     "hoerner_plate": hoerner_plate,
