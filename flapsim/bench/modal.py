@@ -79,7 +79,6 @@ def _time_repeated(fn, budget_s: float, min_reps: int = 3) -> tuple[float, int]:
 
 
 def run_modal(args: argparse.Namespace) -> dict:
-
     budget = args.seconds if args.seconds else 2.0
     model = load_model(tree_xml(), is_xml=True)
     data = mujoco.MjData(model)
@@ -117,7 +116,6 @@ def run_modal(args: argparse.Namespace) -> dict:
 
 
 def run_creatures(args: argparse.Namespace) -> dict:
-
     budget = args.seconds if args.seconds else 2.0
     out: dict = {"benchmark": "creatures", "creatures": {}}
     for name, spec in CREATURES.items():

@@ -7,7 +7,6 @@ below are the short public API; everything else is reached through those subpack
 
 Example: ten wingbeats of level cruise under the learned controller and the bundled
 database::
-
     from flapsim.bird import (CruiseTarget, Dove, DoveFlight, FlightConfig, fly_controlled,
                               load_controller, start_cruise, trim_of_base_flight)
 

@@ -3,7 +3,6 @@
 A *sample worker* class is built once per worker (``worker_cls(config)``: it compiles
 its model once) and then runs many chunks (``worker.run_chunk(start, stop)``); its
 ``header()`` is the run's provenance. Results come back as they complete::
-
     with ChunkExecutor(SampleWorker, config, workers=4) as ex:
         for result in ex.map_unordered([(0, 32), (32, 64), ...]):
             ...

@@ -2,7 +2,6 @@
 checked while the arguments are parsed, before any model is loaded or simulated.
 
 How a command uses it (in its ``add_arguments(parser)``)::
-
     from flapsim.core.validate import add_input_arg, add_output_arg, quantity, vector
 
     p.add_argument("--seconds", type=quantity("seconds"), default=20.0, help="...")

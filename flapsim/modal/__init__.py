@@ -7,7 +7,6 @@
 * :mod:`flapsim.modal.creatures`: the loop and linear creatures and their locomotion runs.
 
 Example: the loop creature's lowest elastic modes::
-
     import mujoco
     from flapsim.core.assets import asset_path
     from flapsim.modal import analyze

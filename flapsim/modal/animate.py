@@ -261,7 +261,6 @@ def animate(
     qpos = apply_soft_limits(model, qpos, limits)
     residual = 0.0
     if projector is not None and projector.active:
-
         # a few Gauss-Newton steps per frame: show progress on long animations
         for k in tqdm(range(times.size), desc="projecting onto the constraints", unit="frame",
                       leave=False, disable=times.size < 1000):

@@ -165,7 +165,6 @@ def run_creature(
     frames: list[np.ndarray] = []
     bar = None
     if progress:
-
         bar = tqdm(total=n_steps, desc=f"{name} creature", unit="step", leave=False)
     t0 = time.perf_counter()
     chunk = max(n_steps // 100, 1)

@@ -8,7 +8,6 @@ The PD equilibrium point moves as
 with ``phi_i = R N u_i`` the (max-normalised) mode shape and ``r(t)`` a short cosine
 ramp from 0 to 1 so the drive starts without a jolt. The PD stiffness is exactly the
 analysis stiffness ``K`` and the damping is the model's ``C``:
-
     tau = K (theta_d - theta) + C (theta_d' - theta').
 
 The model's own joint (and tendon) springs and dampers already supply

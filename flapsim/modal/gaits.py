@@ -174,7 +174,6 @@ def resolve_model(spec: str) -> tuple[mujoco.MjModel, str]:
 
 
 def build_constraints(specs: tuple[str, ...]) -> list[ExtraConstraint]:
-
     out = []
     for s in specs:
         c = parse_constraint(s)

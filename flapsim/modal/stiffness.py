@@ -99,7 +99,6 @@ def sag(
 
 
 def _copy(model: mujoco.MjModel) -> mujoco.MjModel:
-
     return copy.deepcopy(model)
 
 

@@ -7,7 +7,6 @@ reads them, they import it); names are unique and
 start with the family's prefix where it is not flight (``swim-...``).
 
 A runner returns a JSON-able dict with at least::
-
     {"status": "completed" | "lost" | "failed" | ..., "ok": bool, "reason": str,
      "metrics": {name: number, ...}, "files": [paths written]}
 

@@ -7,7 +7,6 @@ The swimmer's body and water (:mod:`flapsim.swim.model`), stroke files
 (:mod:`flapsim.swim.simulate`). The names below are the short public API.
 
 Example: five seconds of front crawl toward a point 10 m ahead and 3 m to the left::
-
     from flapsim.swim import Point, swim
 
     result = swim("crawl", seconds=5.0, target=Point(10.0, 3.0))

@@ -412,7 +412,6 @@ class CalibrationWorker:
         self.hands.t_last = None
 
     def header(self) -> dict:
-
         return {"flapsim_version": __version__, "config": asdict(self.config)}
 
     def run_job(self, i: int) -> dict:

@@ -364,7 +364,6 @@ def swim(
     frames: list[np.ndarray] = []
     frame_every = 0
     if video_fps > 0:
-
         renderer = new_renderer(m, *video_size)
         frame_every = max(1, int(round(1.0 / (video_fps * dt))))
         cam = mujoco.MjvCamera()
@@ -372,7 +371,6 @@ def swim(
         cam.azimuth, cam.elevation, cam.distance = 120.0, -18.0, 3.2
     bar = None
     if progress:
-
         bar = tqdm(total=nsteps, unit=" sim s", unit_scale=dt, desc=st.name, leave=False)
     t_wall = time.perf_counter()
     try:

@@ -3,7 +3,6 @@
 A stroke is a TOML file (``flapsim/swim/data/strokes/<name>.toml``, or any path) that keys
 each joint's anatomical angles separately over one cycle (phase 0..1), as the paper
 does ("key poses are defined for each joint separately"), in degrees::
-
     name = "breaststroke"
     period_s = 1.4            # cycle time at the default stroke rate
     posture = "prone"         # starting posture: prone (face down) or upright
@@ -32,7 +31,6 @@ treading water's balance.
 The paper's per-cycle layer (its sec. 4.3) uses up to six sequences, offsets relative to
 the basic stroke like the perturbations but without a feedback rule, named by the
 rotation they make::
-
     [cycle.yaw_left]          # pitch_up, pitch_down, yaw_left, yaw_right,
     description = "..."       # roll_left (left side down), roll_right
     [cycle.yaw_left.keys.neck]
@@ -41,7 +39,6 @@ rotation they make::
 ``hand_rule_phases = [[0.0, 0.4]]`` (top level, optional) limits the continuous layer's
 hand rules to those parts of the cycle (default: all of it); a table limits each rule
 on its own (a rule it does not name acts all cycle)::
-
     hand_rule_phases = { palm = [[0.1, 0.4]], reach = [[0.0, 0.4]] }
 
 ``hand_rule_aim = 5.0`` (top level, optional, prone strokes) turns the hand rules'

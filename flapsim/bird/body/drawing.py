@@ -39,14 +39,12 @@ class FeatherDrawing:
     model is untouched.
 
     Use::
-
         draw = FeatherDrawing(dove)
         d = mujoco.MjData(draw.model)
         d.qpos[:] = flight.frame()[draw.ix]; draw.apply(d); mujoco.mj_forward(draw.model, d)
     """
 
     def __init__(self, dove) -> None:
-
         if dove.modal is None:
             raise InputError("FeatherDrawing draws a modal dove (Dove.load(feathers='modal'))")
         modes = dove_feather_modes(dove.params, dove.modal)
@@ -130,7 +128,6 @@ def _rest_vertices(fm: FeatherModes) -> np.ndarray:
 
 
 def _drawing_table() -> CoefficientTable:
-
     return get_table("flat_plate")  # only the geometry (the warp) is used: any table
 
 

@@ -887,7 +887,6 @@ class ModalFeathers(CompiledProvider):
         none_i, none_f = np.zeros(0, dtype=np.int64), np.zeros(0)
         self._hint, self._hflt = none_i, none_f
         if self.engine:
-
             if hinges is not None and len(hinges):
                 _, self._hint, self._hflt = hinges.tables(model, [], np.zeros(0, dtype=np.int64))
                 self.userdata_offset = userdata_size(len(hinges))

@@ -193,7 +193,6 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
         # engine-integrated modes' state (flapsim.bird.body.feather_dynamics)
         nud = userdata_size(2 * len(p.primary_angle_deg))
         if modal is not None:
-
             nud += engine_userdata_size(len(feathers), modal.modes)
         out[0] = out[0].replace('<size memory="4M"/>', f'<size memory="4M" nuserdata="{nud}"/>')
     out.append("  </worldbody>\n")
@@ -202,7 +201,6 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
     out.append(_sensors_xml())
     out.append("</mujoco>\n")
     if joints:
-
         return modal_xml("".join(out), p, modal)
     return "".join(out)
 
@@ -515,7 +513,6 @@ class Dove:
 
         params = params or DoveParams.load()
         if feathers == "modal":
-
             if path is not None:
                 raise ModelError("modal feathers are generated from the parameters, not a file")
             return cls.from_params(params, modal or ModalParams())
@@ -632,7 +629,6 @@ class Dove:
         if self.twist_hinges() is None:
             return self.model, np.arange(self.model.nq)
         if getattr(self, "_drawing", None) is None:
-
             shown = load_model(build_xml(self.params, twist="tree"), is_xml=True)
             m = self.model
             ix = np.zeros(shown.nq, dtype=int)

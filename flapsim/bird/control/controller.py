@@ -332,7 +332,6 @@ def fly_controlled(controller, target, wingbeats: int, progress: bool = False,
     start = fl.data.qpos[0:3].copy()
     it = range(wingbeats)
     if progress:
-
         it = tqdm(it, desc="wingbeats", unit="wb")
     steps = []
     t0 = time.perf_counter()

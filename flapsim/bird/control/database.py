@@ -2,7 +2,6 @@
 versioned binary file that survives being killed at any moment.
 
 Layout (little-endian throughout)::
-
     preamble   8 s   magic b"\\x93FLAPDB\\n"
                u32   schema version (SCHEMA_VERSION)
                u32   header length H
@@ -403,7 +402,6 @@ def _signals_deferred() -> Iterator[None]:
 
 
 def _write_atomic(path: Path, blobs: list[bytes]) -> None:
-
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             for b in blobs:

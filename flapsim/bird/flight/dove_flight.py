@@ -168,7 +168,6 @@ class DoveFlight:
                 feathers = _without(feathers, self.plucked)
             self.polygons = PolygonSet.concat([feathers, body_polygons(self.dove)])
         else:
-
             # the deformable feathers are the modal provider's; the trunk stays a polygon set
             self.polygons = body_polygons(self.dove)
             # engine-integrated modes: the primaries' twist hinges are integrated with them
@@ -353,7 +352,6 @@ class DoveFlight:
         return out
 
     def _rollout(self, ctrl: np.ndarray):
-
         m, d = self.model, self.data
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         size = mujoco.mj_stateSize(m, spec)
@@ -545,7 +543,6 @@ def fly(dove: Dove, wingbeats: int, cfg: FlightConfig | None = None, p: np.ndarr
         recs = []
         it = range(wingbeats)
         if progress:
-
             it = tqdm(it, desc="wingbeats", unit="wb")
         t0 = _time.perf_counter()
         for _ in it:

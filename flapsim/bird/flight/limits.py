@@ -80,7 +80,6 @@ class Candidate:
     """Both shoulder twists translated, deg (- supinates: more angle of attack)."""
 
     def params(self, P0: np.ndarray) -> np.ndarray:
-
         return with_twist_bias(with_flap_and_beat(P0, self.flap_scale, self.timewarp), self.twist_deg)
 
 

@@ -20,7 +20,6 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
     model, hook = dove.model, None
     frames = np.asarray(qpos_steps)
     if dove.modal is not None:
-
         model, hook, ix = video_model(dove)
         frames = frames[:, ix]
     else:  # the primaries drawn twisted (their hinges are outside the skeleton)

@@ -3,7 +3,6 @@
 The reference wingbeat is the phase-aligned average of all capture cycles, stored as a
 truncated Fourier series per DOF (a smooth periodic function of phase, with analytic
 derivative). A parameterized wingbeat ``P = (s1, t1, ..., s14, t14, w)`` changes it:
-
     q_i(t) = m_i + s_i (r_i(phi) - m_i) + t_i,   phi = t / (w T0),  0 <= t < w T0
 
 with ``r_i`` the reference, ``m_i`` its cycle mean and ``T0`` the mean capture period:

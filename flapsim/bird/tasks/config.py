@@ -8,7 +8,6 @@ first, slowing for tight turns. It is its own dataclass rather than part of
 :class:`~flapsim.bird.control.config.ControllerConfig` because it tunes another loop: the
 wingbeat controller answers a target state whatever asks for it (a cruise has no path), and
 the path target is built above it. One file holds both, as two tables::
-
     [controller]   # ControllerConfig
     carry = 0.4
     [path]         # PathControlConfig

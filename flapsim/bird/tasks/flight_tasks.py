@@ -390,7 +390,6 @@ def _fly(fl, ctl, target: PathTarget, task: Task, record: bool, progress: bool) 
     lost_at = None
     bar = None
     if progress:
-
         bar = tqdm(total=round(task.path.length, 1), desc="path", unit="m")
     t0 = time.perf_counter()
     try:

@@ -131,7 +131,6 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             target = CruiseTarget(trim, altitude=cfg.height, speed=cmd.speed)
         draw = None
         if fl.dove.modal is not None:
-
             draw = FeatherDrawing(fl.dove)
         # what is drawn: the dove with its primaries' twist hinges in the skeleton (a flight
         # state's qpos[ix] is its qpos), or the display copy with bendable feathers (the
@@ -241,7 +240,6 @@ def _place(m: mujoco.MjModel, shown: mujoco.MjData, qpos: np.ndarray, draw) -> N
 
 
 def _dummy_path():
-
     return straight(10.0)
 
 

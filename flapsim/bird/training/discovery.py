@@ -65,7 +65,6 @@ class DiscoveryWorker:
     """Runs the phase-1 controller on random steering tasks (one task = one sample)."""
 
     def __init__(self, config: DiscoveryConfig) -> None:
-
         if not config.db:
             raise InputError("phase 2 needs the phase-1 database (--from DB)")
         self.config = config
@@ -90,7 +89,6 @@ class DiscoveryWorker:
         self.sampler.close()
 
     def sample(self, index: int) -> tuple[dict[str, np.ndarray] | None, str]:
-
         c = self.config
         rng = np.random.default_rng([c.seed, index])
         sp = self.sampler

@@ -284,7 +284,6 @@ class SamplingConfig(StoredConfig):
         if not (np.isfinite(self.centre_timewarp) and 0.5 <= self.centre_timewarp <= 2.0):
             raise InputError(f"--centre-timewarp must be within 0.5..2, got {self.centre_timewarp}")
         if self.centre_wingbeat:
-
             c = np.asarray(self.centre_wingbeat)
             if c.shape != (N_PARAMS,) or not np.all(np.isfinite(c)) or not 0.5 <= c[-1] <= 2.0:
                 raise InputError(f"--centre-wingbeat must be {N_PARAMS} finite wingbeat parameters "
@@ -328,7 +327,6 @@ def collect_chunk(sample, start: int, stop: int) -> ChunkResult:
 def load_examples(config: SamplingConfig, ref: ReferenceWingbeat) -> WingbeatSet:
     if config.source == "capture":
         if config.capture:
-
             cap = load_capture(config.capture).with_mirror()
         else:
             cap = reference_capture(with_mirror=True)
@@ -354,7 +352,6 @@ class SampleWorker:
         self.centre = sampling_centre(self.P0, config) - self.P0
         self.manifold = None
         if config.extrapolate > 0:
-
             self.manifold = Manifold.fit(self.examples)
 
     def header(self) -> dict:

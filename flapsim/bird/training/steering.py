@@ -162,7 +162,6 @@ def steering_range(controller: WingbeatController, trim: Trim, ask_deg: float = 
 
 
 def _com_vel(fl, snap: cycle.Snapshot) -> np.ndarray:
-
     cycle.restore(fl, snap)
     mujoco.mj_subtreeVel(fl.model, fl.data)
     return fl.data.subtree_linvel[fl.dove.trunk].copy()

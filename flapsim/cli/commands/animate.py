@@ -87,7 +87,6 @@ def run(args: argparse.Namespace) -> dict:
     scale = args.stiffness_scale
     tuning = None
     if args.tune_stiffness:
-
         keyframe = g.keyframe if g.keyframe and _has_key(model, g.keyframe) else None
         res = tune_stiffness(model, keyframe=keyframe)
         scale *= res.scale
@@ -157,23 +156,19 @@ def run(args: argparse.Namespace) -> dict:
         print(f"trajectory -> {args.npz}")
         out["npz"] = args.npz
     if args.bvh:
-
         ch = write_bvh(args.bvh, model, anim.qpos, 1.0 / args.fps)
         print(f"BVH ({ch} channels) -> {args.bvh}")
         out["bvh"] = args.bvh
     if args.sheet:
-
         info = contact_sheet(plan, model, args.sheet)
         print(f"contact sheet ({info['frames']} frames of one {info['period_s']:.2g} s cycle) "
               f"-> {args.sheet}")
         out["sheet"] = args.sheet
     if args.video:
-
         frames = render_poses(model, list(anim.qpos), args.video, fps=args.fps, track=True)
         print(f"video ({frames} frames) -> {args.video}")
         out["video"] = args.video
     if args.browse:
-
         if not os.environ.get("DISPLAY"):
             raise InputError("--browse needs a display (DISPLAY is not set); use --sheet PNG")
 

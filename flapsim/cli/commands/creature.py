@@ -64,7 +64,6 @@ def run(args: argparse.Namespace) -> dict:
     )
     print(f"real-time factor {r['realtime_factor']:.1f} (simulated s per wall s)")
     if args.video and frames is not None:
-
         n = render_poses(model, list(frames), args.video, fps=fps, track=True)
         print(f"video: {n} frames -> {args.video}")
         result["video"] = {"path": str(args.video), "frames": n, "fps": fps}

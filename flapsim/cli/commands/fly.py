@@ -74,7 +74,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> dict:
     if args.path:
-
         args.flight_path = load_path(args.path)  # one-line DataFileError before any work
         # without --wingbeats the path is flown for the tasks' time budget in seconds, as eval
         # allows it: a count of reference wingbeats gave shorter learned wingbeats less time
@@ -135,7 +134,6 @@ def run(args: argparse.Namespace) -> dict:
     pr, rr = metrics["pitch_range_deg"], metrics["roll_range_deg"]
     print(f"  pitch {pr[0]:.1f}..{pr[1]:.1f} deg, roll {rr[0]:.1f}..{rr[1]:.1f} deg")
     if args.power:
-
         skip = min(2, args.wingbeats - 1)  # the start's transient out, where there is more
         pw = power_budget(args.wingbeats, skip, config=cfg)
         down = pw["drag_feathers_downstroke_W"] / pw["drag_feathers_W"]
@@ -155,7 +153,6 @@ def run(args: argparse.Namespace) -> dict:
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-
         n = dove_video(dove, flight.qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
@@ -167,7 +164,6 @@ def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> d
 
     dove = Dove.load(feathers=args.feathers)
     if args.controller == "learned" and not args.table:
-
         cfg = dataclasses.replace(cfg, table=database_table(args.db, args.feathers))
     fl = DoveFlight(dove, table=cfg.table)
     try:
@@ -267,7 +263,6 @@ def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, h
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-
         n = dove_video(Dove.load(feathers=args.feathers), r.qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
@@ -288,7 +283,6 @@ def _write_outputs(args: argparse.Namespace, dove, flight, result: dict, width: 
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-
         n = dove_video(dove, qpos, args.video, args.fps, width, height)
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video

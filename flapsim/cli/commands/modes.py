@@ -104,7 +104,6 @@ def run(args: argparse.Namespace) -> dict:
 
     out = {"model": str(path), "analysis_s": elapsed, **result.to_dict(shapes=args.shapes)}
     if args.video:
-
         modes = video_modes if video_modes is not None else [r["mode"] for r in rows]
         for i in modes:
             result._check_mode(i)

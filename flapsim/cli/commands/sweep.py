@@ -77,7 +77,6 @@ def run(args: argparse.Namespace) -> dict:
             tmp.write_text("\n".join(lines) + "\n")
         print(f"table written to {args.csv}")
     if args.plot:
-
         sweep_plot(rows, args.vary, PARAMETERS[args.vary][1], args.plot, args.stroke)
         print(f"plot written to {args.plot}")
     failed = [r for r in rows if "error" in r]

@@ -147,7 +147,6 @@ def target_from_args(args: argparse.Namespace):
     if args.figure8 is not None:
         return figure_eight(args.figure8, lookahead=args.lookahead)
     if getattr(args, "trajectory", None) is not None:
-
         return load_trajectory(args.trajectory)
     if args.heading is not None:
         if not np.isfinite(args.heading):
@@ -200,7 +199,6 @@ def run(args: argparse.Namespace) -> dict:
         return calibrate_command(args, params)
     cycle_table = None
     if args.table is not None:
-
         cycle_table = load_table(load_stroke(args.stroke), args.table,
                                  layers="all" if layers == "all" else "cycle")
     video = args.video
@@ -210,7 +208,6 @@ def run(args: argparse.Namespace) -> dict:
     viewer = None
     swimmer = None
     if args.viewer:
-
         check_display()
         if target is not None and not isinstance(target, Point):
             raise InputError("the viewer steers for a point you move: use --target X,Y (or "
@@ -239,7 +236,6 @@ def run(args: argparse.Namespace) -> dict:
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
     if args.plot:
-
         track_plot(result, args.plot)
         s["plot"] = str(args.plot)
     if viewer is not None:
@@ -249,7 +245,6 @@ def run(args: argparse.Namespace) -> dict:
                        "final_rate_hz": rates[-1] if rates else s["stroke_rate_hz"],
                        "final_layers": s["layers_mode"]}
     if args.out:
-
         extra = {}
         if isinstance(result.target, Path):
             extra["target_path"] = result.target.points

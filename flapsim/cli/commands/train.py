@@ -226,7 +226,6 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
     if getattr(args, "feathers", "rigid") != "rigid":
         kwargs["feathers"] = args.feathers
     if getattr(args, "table", None):
-
         kwargs["table"] = get_table(args.table).name  # an unknown name: one-line error here
     if getattr(args, "twist_bias_deg", None) is not None:
         kwargs["twist_bias_deg"] = float(args.twist_bias_deg)
