@@ -60,6 +60,7 @@ from flapsim.fluid.hinges import (
     hinged_vector,
     integrator_damping,
 )
+from flapsim.fluid.induced import InducedFlow, momentum_downwash
 
 RECORD = 16  # floats recorded per polygon by evaluate(): see SurfaceReport
 QFRC_ARG = 26  # surface_kernel's qfrc argument, counted after ``w``
@@ -343,7 +344,7 @@ def plate_force(rho, eta, area, nx, ny, nz, vx, vy, vz, vn, tx, ty, tz, x, has_f
 def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, pext, ptab,
                    cl_tab, cd_tab, flow, params, tnow, ext_flow, rec, phinge, hint, hflt, hs, qpos,
                    qvel, qacc, qfrc, qfrc_applied, qM, damping, parent, dofadr, dofnum, cdof,
-                   cdof_dot, cacc, opt, userdata):
+                   cdof_dot, cacc, opt, userdata, pgroup, gint, gflt, gacc):
     """Add every polygon's force to the body wrench accumulator ``w``.
 
     ``params`` = (density, friction, front_only, surface_z, use_ext_flow); ``cl_tab`` and
@@ -352,6 +353,10 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
     Polygons with ``phinge >= 0`` ride that hinge (:mod:`flapsim.fluid.hinges`: ``hint``,
     ``hflt``, scratch ``hs``); the hinges' torques go to their DOF in ``qfrc`` (the
     remaining arrays are the MuJoCo data and model arrays the hinges read, ``cacc`` scratch).
+    Polygons with ``pgroup >= 0`` push and see their group's induced flow
+    (:mod:`flapsim.fluid.induced`: DOF addresses and the free stream's body in ``gint``, disk
+    areas in ``gflt``, the groups' summed forces in the scratch ``gacc``); the downwash's
+    drive goes to its DOF in ``qfrc``.
     """
     rho = params[0]
     eta = params[1]
@@ -363,6 +368,9 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
     nh = hint.size // 4
     if nh > 0:
         hinge_frames(xpos, xmat, qpos, qvel, hint, hflt, hs)
+    ng = gflt.size
+    for k in range(3 * ng):
+        gacc[k] = 0.0
     for i in range(pbody.size):
         b = pbody[i]
         h = phinge[i] if nh > 0 else -1
@@ -408,6 +416,11 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             ux += ext_flow[3 * i]
             uy += ext_flow[3 * i + 1]
             uz += ext_flow[3 * i + 2]
+        grp = pgroup[i] if ng > 0 else -1
+        if grp >= 0:  # the group's own downwash: the velocity of its DOF
+            ux += qvel[gint[3 * grp]]
+            uy += qvel[gint[3 * grp + 1]]
+            uz += qvel[gint[3 * grp + 2]]
         vx = ux - (cvel[6 * b + 3] + wy * dz - wz * dy)
         vy = uy - (cvel[6 * b + 4] + wz * dx - wx * dz)
         vz = uz - (cvel[6 * b + 5] + wx * dy - wy * dx)
@@ -456,6 +469,10 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
         Fy = dry + lfy + fry
         Fz = drz + lfz + frz
         add_force(w, b, Fx, Fy, Fz, px, py, pz)
+        if grp >= 0:
+            gacc[3 * grp] += Fx
+            gacc[3 * grp + 1] += Fy
+            gacc[3 * grp + 2] += Fz
         if h >= 0:  # the force's torque about the hinge axis
             hs[so + 16] += (hs[so + 1] * (ry * Fz - rz * Fy) + hs[so + 2] * (rz * Fx - rx * Fz)
                             + hs[so + 3] * (rx * Fy - ry * Fx))
@@ -472,13 +489,41 @@ def surface_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, pf, parea, 
             rec[o + 8] = frz
             rec[o + 9] = np.arctan2(y, x)
             rec[o + 10] = frac
+    if ng > 0:
+        # the free stream: the air at the reference body relative to its frame origin
+        rb = gint[3 * ng]
+        r = rootid[rb]
+        bx = xpos[3 * rb]
+        by = xpos[3 * rb + 1]
+        bz = xpos[3 * rb + 2]
+        dx = bx - scom[3 * r]
+        dy = by - scom[3 * r + 1]
+        dz = bz - scom[3 * r + 2]
+        wx = cvel[6 * rb]
+        wy = cvel[6 * rb + 1]
+        wz = cvel[6 * rb + 2]
+        ux, uy, uz = flow_at(flow, bx, by, bz, t)
+        vfx = ux - (cvel[6 * rb + 3] + wy * dz - wz * dy)
+        vfy = uy - (cvel[6 * rb + 4] + wz * dx - wx * dz)
+        vfz = uz - (cvel[6 * rb + 5] + wx * dy - wy * dx)
+        for g in range(ng):
+            a0 = gint[3 * g]
+            a1 = gint[3 * g + 1]
+            a2 = gint[3 * g + 2]
+            qx, qy, qz = momentum_downwash(gacc[3 * g], gacc[3 * g + 1], gacc[3 * g + 2], vfx, vfy,
+                                           vfz, qvel[a0], qvel[a1], qvel[a2], rho, gflt[g])
+            # with the DOF's own damping c, c (w_momentum - w): tau dw/dt = w_momentum - w
+            qfrc[a0] += damping[a0] * qx
+            qfrc[a1] += damping[a1] * qy
+            qfrc[a2] += damping[a2] * qz
     if nh > 0:
         hinge_torque(hint, hflt, hs, cvel, cacc, scom, rootid, qpos, qvel, qfrc, qfrc_applied, qM,
                      damping, opt, t, userdata, parent, dofadr, dofnum, cdof, cdof_dot, qacc)
     return 0
 
 
-register_kernel("surfaces", surface_kernel, "ffffiifffffifffffff" + "iiff" + "fffffff" + "iiifffff")
+register_kernel("surfaces", surface_kernel,
+                "ffffiifffffifffffff" + "iiff" + "fffffff" + "iiifffff" + "iiff")
 
 
 @dataclass
@@ -518,6 +563,7 @@ class SurfaceForces(CompiledProvider):
         flow: FlowField | None = None,
         name: str = "surface forces",
         hinges: PolygonHinges | None = None,
+        induced: InducedFlow | None = None,
     ) -> None:
         self.model = model
         self.polygons = polygons
@@ -550,6 +596,21 @@ class SurfaceForces(CompiledProvider):
         if hinges is not None and len(hinges):
             self._phinge, self._hint, self._hflt = hinges.tables(model, polygons.labels, polygons.body)
             integrator_damping(model)  # an RK4 model is refused here, not at the first step
+        self.induced = induced
+        self._pgroup, self._gint, self._gflt = none_i, none_i, none_f
+        if induced is not None:
+            if induced.polygon_group.size != len(polygons):
+                raise InputError(f"InducedFlow.polygon_group has {induced.polygon_group.size} "
+                                 f"entries for {len(polygons)} polygons")
+            self._pgroup = induced.polygon_group
+            self._gint, self._gflt = induced.tables(model)
+            integrator_damping(model)
+        self._gacc = np.zeros(3 * self._gflt.size)
+
+    @property
+    def induced_dofs(self) -> np.ndarray:
+        """The DOF addresses holding the induced flow's downwash (empty without it)."""
+        return self._gint[:-1].copy() if self._gint.size else np.zeros(0, dtype=np.int64)
 
     def set_params(self, params: FluidParams) -> None:
         """Change density, friction or the free surface in place (takes effect at once)."""
@@ -572,10 +633,12 @@ class SurfaceForces(CompiledProvider):
     def _hinge_arrays(self, model: mujoco.MjModel, data: mujoco.MjData) -> list[np.ndarray]:
         """The hinges' arrays (:mod:`flapsim.fluid.hinges`) for one (model, data): their
         scratch is per registration, the timestep the model's own (a coarser copy, say)."""
-        if self._hint.size == 0:
+        induced = [self._pgroup, self._gint, self._gflt, self._gacc]
+        if self._hint.size == 0 and self._gflt.size == 0:
             return [self._phinge, self._hint, self._hflt, *[np.zeros(0)] * 8,
-                    *[np.zeros(0, dtype=np.int64)] * 3, *[np.zeros(0)] * 5]
-        return [self._phinge, *hinge_arrays(model, data, self._hint, self._hflt)]
+                    *[np.zeros(0, dtype=np.int64)] * 3, *[np.zeros(0)] * 5, *induced]
+        # the induced flow reads and drives its DOF through the same data arrays as the hinges
+        return [self._phinge, *hinge_arrays(model, data, self._hint, self._hflt), *induced]
 
     def register(self, data: mujoco.MjData, model: mujoco.MjModel | None = None) -> Registration:
         """Apply these forces whenever MuJoCo steps ``data`` (until the handle is removed);

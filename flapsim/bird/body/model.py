@@ -65,6 +65,7 @@ from flapsim.core.assets import asset_path
 from flapsim.core.errors import ModelError
 from flapsim.core.loading import load_model
 from flapsim.fluid.hinges import PolygonHinges, userdata_size
+from flapsim.fluid.induced import induced_xml
 
 # -- geometry --------------------------------------------------------------------------------
 
@@ -137,7 +138,7 @@ _HEADER = """<mujoco model="dove">
 
 
 def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
-              modal: object | None = None, twist: str | None = None) -> str:
+              modal: object | None = None, twist: str | None = None, induced: bool = False) -> str:
     """The complete dove MJCF as a string (meshes inline).
 
     ``fixed_trunk_pitch_deg``: weld the trunk to the world (no free joint) at this nose-up
@@ -151,7 +152,9 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
     hinges are: ``"separate"`` (the rigid default) on weightless bodies hung from the world,
     integrated and clamped by the force engine (:mod:`flapsim.fluid.hinges`), or ``"tree"``
     (the modal joints' default, and the drawing model :meth:`Dove.drawing`) in each primary's
-    body, with a MuJoCo joint limit as the stop.
+    body, with a MuJoCo joint limit as the stop. ``induced``: with each wing's downwash
+    state (:data:`WING_GROUPS`, :func:`flapsim.fluid.induced.induced_xml`), so that its
+    feathers see the air their own lift pushes down (not the default).
     """
     joints = modal is not None and modal.integration == "joints"
     twist = twist or ("tree" if joints else "separate")
@@ -195,6 +198,8 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
         if modal is not None:
             nud += engine_userdata_size(len(feathers), modal.modes)
         out[0] = out[0].replace('<size memory="4M"/>', f'<size memory="4M" nuserdata="{nud}"/>')
+    if induced:
+        out.append(induced_xml(WING_GROUPS))
     out.append("  </worldbody>\n")
     out.append(_tendons_xml(p))
     out.append(_actuators_xml(p))
@@ -203,6 +208,26 @@ def build_xml(p: DoveParams, fixed_trunk_pitch_deg: float | None = None,
     if joints:
         return modal_xml("".join(out), p, modal)
     return "".join(out)
+
+
+#: The induced-flow groups of the dove: each side's feathers (the wing and its half of the
+#: tail, which flies in that wing's wake and pushes the same air) push and see their own
+#: downwash (:mod:`flapsim.fluid.induced`); the trunk neither.
+WING_GROUPS = ("l_wing", "r_wing")
+
+
+def wingspan(p: DoveParams) -> float:
+    """Tip-to-tip span of the spread wings (the primaries' tips), m."""
+    return float(2 * max(np.max(np.abs(_world_tip_y(p))), 0))
+
+
+def wing_group(label: str) -> int:
+    """The :data:`WING_GROUPS` index of a feather label (``l_p3``, ``l_r1``: 0; ``r_s2``: 1),
+    -1 for anything that is no feather."""
+    side, _, rest = label.partition("_")
+    if side not in ("l", "r") or not rest or rest[0] not in "pstr":
+        return -1
+    return 0 if side == "l" else 1
 
 
 def _world_tip_y(p: DoveParams) -> np.ndarray:
@@ -504,12 +529,20 @@ class Dove:
         """``rigid`` or ``modal``."""
         return "rigid" if self.modal is None else "modal"
 
+    @property
+    def induced(self) -> bool:
+        """Whether the model carries the wings' downwash state (``Dove.load(induced=True)``)."""
+        return mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT,
+                                 f"{WING_GROUPS[0]}_induced_x") >= 0
+
     @classmethod
     def load(cls, path: str | Path | None = None, params: DoveParams | None = None,
-             feathers: str = "rigid", modal: object | None = None) -> Dove:
+             feathers: str = "rigid", modal: object | None = None, induced: bool = False) -> Dove:
         """The bundled dove (``feathers="rigid"``, from ``bird_mjcf/dove.xml``), or the same
         bird with modal feathers (``feathers="modal"``: generated from the parameters with
-        ``modal`` or the default :class:`~flapsim.bird.body.feather_modes.ModalParams`)."""
+        ``modal`` or the default :class:`~flapsim.bird.body.feather_modes.ModalParams`).
+        ``induced``: the rigid dove generated with its wings' downwash state
+        (:func:`build_xml`)."""
 
         params = params or DoveParams.load()
         if feathers == "modal":
@@ -518,14 +551,22 @@ class Dove:
             return cls.from_params(params, modal or ModalParams())
         if feathers != "rigid":
             raise ModelError(f"feathers must be 'rigid' or 'modal', got {feathers!r}")
+        if induced:
+            if path is not None:
+                raise ModelError("the induced-flow dove is generated from the parameters, not a file")
+            return cls.from_params(params, induced=True)
         model = load_model(path or model_path())
         return cls.from_model(model, params)
 
     @classmethod
-    def from_params(cls, params: DoveParams, modal: object | None = None) -> Dove:
+    def from_params(cls, params: DoveParams, modal: object | None = None,
+                    induced: bool = False) -> Dove:
         """Compile straight from parameters (no file): for studies that vary the model."""
-
-        return cls.from_model(load_model(build_xml(params, modal=modal), is_xml=True), params, modal)
+        if induced and modal is not None:
+            raise ModelError("the induced flow is carried by the rigid feathers' force engine; "
+                             "modal feathers do not see it yet")
+        xml = build_xml(params, modal=modal, induced=induced)
+        return cls.from_model(load_model(xml, is_xml=True), params, modal)
 
     @classmethod
     def from_model(cls, model: mujoco.MjModel, params: DoveParams,

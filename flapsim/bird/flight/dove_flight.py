@@ -24,7 +24,7 @@ from mujoco import rollout
 from tqdm import tqdm
 
 from flapsim.bird.body.feather_dynamics import ModalFeathers, dove_feather_modes
-from flapsim.bird.body.model import Dove, build_xml
+from flapsim.bird.body.model import WING_GROUPS, Dove, build_xml, wing_group, wingspan
 from flapsim.bird.body.params import (
     DOF_NAMES,
     DoveParams,
@@ -46,6 +46,7 @@ from flapsim.core.loading import load_model
 from flapsim.core.pd import affine_gains
 from flapsim.fluid.coefficients import bluff_body, get_table
 from flapsim.fluid.flow import FlowField, Uniform
+from flapsim.fluid.induced import InducedFlow
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
 
 log = logging.getLogger(__name__)
@@ -178,7 +179,8 @@ class DoveFlight:
         self.aero = SurfaceForces(m, self.polygons,
                                   [get_table(self.table), bluff_body(self.dove.params.body_drag_cd)],
                                   FluidParams(AIR_DENSITY), self.flow, name="dove feathers and body",
-                                  hinges=self.dove.twist_hinges() if self.modal is None else None)
+                                  hinges=self.dove.twist_hinges() if self.modal is None else None,
+                                  induced=self._induced_flow())
         self.registration = self.aero.register(self.data)
         self._modal_registration = self.modal.register(self.data) if self.modal else None
         self.kp, self.kv = affine_gains(m)
@@ -201,6 +203,25 @@ class DoveFlight:
         self._rollout_data = None
         self._twins: list[DoveFlight] = []
         self._on_close: list = []
+
+    def _induced_flow(self) -> InducedFlow | None:
+        """Each wing's feathers push and see their own downwash, on half the span's disk
+        (``pi b^2 / 8`` per wing), with the trunk's velocity as the free stream; None for a
+        dove built without the downwash state (the default)."""
+        if not self.dove.induced:
+            return None
+        if self.modal is not None:
+            raise InputError("the induced flow needs rigid feathers")
+        groups = [wing_group(lb) for lb in self.polygons.labels] if self.polygons.labels else []
+        if len(groups) != len(self.polygons):  # the trunk's polygons carry no labels
+            n_feather = int(np.sum(self.polygons.table != BODY_TABLE))
+            feather_labels = feather_polygons(self.dove).labels
+            if self.plucked:
+                feather_labels = _without(feather_polygons(self.dove), self.plucked).labels
+            groups = [wing_group(lb) for lb in feather_labels][:n_feather]
+            groups += [-1] * (len(self.polygons) - len(groups))
+        area = float(np.pi * wingspan(self.dove.params) ** 2 / 8.0)
+        return InducedFlow(WING_GROUPS, np.array(groups), (area, area), "trunk")
 
     def close(self) -> None:
         for fn in self._on_close:

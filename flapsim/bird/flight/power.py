@@ -34,7 +34,7 @@ AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
 def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                  tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0,
                  p: np.ndarray | None = None, speed: float | None = None,
-                 config: FlightConfig | None = None) -> dict:
+                 config: FlightConfig | None = None, induced: bool = False) -> dict:
     """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
     of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
     tail bend added to P0; ``twist_bias_deg``: both shoulder twists added, + pronates), with
@@ -42,7 +42,9 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
     force over the weight and the mean forward speed (see the module). ``p``: fly this
     wingbeat instead (the biases are then not applied); ``speed``: the start's forward speed,
     m/s (default the cruise start's 7); ``config``: the start and the table (pitch, speed,
-    tail bias) as ``flapsim fly`` sets them, instead of the defaults."""
+    tail bias) as ``flapsim fly`` sets them, instead of the defaults; ``induced``: the dove
+    whose wings see their own downwash (:meth:`Dove.load`), whose downwash DOF are left out of
+    every work term (they are the air's, not the bird's)."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
     cfg = config or FlightConfig()
@@ -55,7 +57,7 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
         p = with_twist_bias(with_tail_bias(p0(), bias), twist_bias_deg)
     elif np.shape(p) != np.shape(p0()) or not np.all(np.isfinite(p)):
         raise InputError(f"a wingbeat is {np.size(p0())} finite parameters, got shape {np.shape(p)}")
-    dove = Dove.load()
+    dove = Dove.load(induced=induced)
     fl = DoveFlight(dove, table=cfg.table, use_rollout=False)
     m, d = fl.model, fl.data
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
@@ -87,13 +89,17 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
         fl.close()
     # every step of the wingbeats averaged that has a next step (its end state)
     use = [k for k in range(len(steps) - 1) if steps[k]["wb"] >= skip]
-    return _summarise(steps, use, feather, m.opt.timestep, dove.mass)
+    bird_dof = np.ones(m.nv, dtype=bool)
+    bird_dof[fl.aero.induced_dofs] = False
+    return _summarise(steps, use, feather, m.opt.timestep, dove.mass, bird_dof)
 
 
 def _summarise(steps: list[dict], use: list[int], feather: np.ndarray, dt: float,
-               mass: float) -> dict:
+               mass: float, bird_dof: np.ndarray | None = None) -> dict:
     col = lambda key, shift=0: np.array([steps[k + shift][key] for k in use])  # noqa: E731
     v = 0.5 * (col("v0") + col("v1"))  # the step's mean velocity: its work closes the balance
+    if bird_dof is not None:
+        v = v * bird_dof
     work = lambda key: np.einsum("ij,ij->i", col(key), v)  # noqa: E731
     # still air: the relative flow is minus the centroid's velocity over the step
     vrel = -(col("points", 1) - col("points")) / dt
