@@ -63,6 +63,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="rigid feather plates (default) or modal feathers that bend and twist "
                         "(4 modes each, the paper's sec. 6: slower)")
+    p.add_argument("--induced", action="store_true",
+                   help="the wings see the air their own lift pushes down (momentum theory, "
+                        "flapsim.fluid.induced; base controller, rigid feathers; not the default: "
+                        "the bundled wingbeat and databases were made without it)")
     p.add_argument("--power", action="store_true",
                    help="also the base flight's energy balance: the servos' power, where the air "
                         "and the dampers take it (feather drag by stroke and angle of attack), "
@@ -104,19 +108,25 @@ def run(args: argparse.Namespace) -> dict:
         if args.feathers != "rigid":
             raise InputError("--power needs rigid feathers (the modal feathers' forces are not "
                              "split by polygon)")
+    if args.induced and (args.path or args.controller == "learned" or args.db or args.roll_deg
+                         or args.feathers != "rigid"):
+        raise InputError("--induced flies the base controller with rigid feathers (the "
+                         "databases were sampled without the downwash): drop --controller "
+                         "learned, --path, --db, --roll-deg and --feathers modal")
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")
         return _run_path(args, cfg, width, height)
     if args.controller == "learned" or args.db or args.roll_deg:
         return _run_controlled(args, cfg, width, height)
-    dove = Dove.load(feathers=args.feathers)
+    dove = Dove.load(feathers=args.feathers, induced=args.induced)
     flight = fly(dove, args.wingbeats, cfg, use_rollout=not args.python_loop, progress=True,
                  keep_qpos=bool(args.video))
     metrics = flight_metrics(flight)
     result = {
         "wingbeats": args.wingbeats,
         "feathers": args.feathers,
+        "induced": bool(args.induced),
         "model_hash": dove.hash(),
         "mass": dove.mass,
         "config": {"speed": cfg.speed, "pitch_deg": cfg.pitch_deg,
@@ -135,7 +145,7 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  pitch {pr[0]:.1f}..{pr[1]:.1f} deg, roll {rr[0]:.1f}..{rr[1]:.1f} deg")
     if args.power:
         skip = min(2, args.wingbeats - 1)  # the start's transient out, where there is more
-        pw = power_budget(args.wingbeats, skip, config=cfg)
+        pw = power_budget(args.wingbeats, skip, config=cfg, induced=args.induced)
         down = pw["drag_feathers_downstroke_W"] / pw["drag_feathers_W"]
         bins = pw["drag_feathers_by_aoa_W"]
         steep = (bins["30-45"] + bins["45-60"]) / pw["drag_feathers_W"]
