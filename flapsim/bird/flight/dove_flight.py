@@ -205,23 +205,16 @@ class DoveFlight:
         self._on_close: list = []
 
     def _induced_flow(self) -> InducedFlow | None:
-        """Each wing's feathers push and see their own downwash, on half the span's disk
-        (``pi b^2 / 8`` per wing), with the trunk's velocity as the free stream; None for a
-        dove built without the downwash state (the default)."""
+        """Each side's feathers (the wing and its half of the tail) push and see their own
+        downwash, on half the span's disk (``pi b^2 / 8`` each), with the trunk's velocity as
+        the free stream; None for a dove built without the downwash state (the default)."""
         if not self.dove.induced:
             return None
         if self.modal is not None:
             raise InputError("the induced flow needs rigid feathers")
-        groups = [wing_group(lb) for lb in self.polygons.labels] if self.polygons.labels else []
-        if len(groups) != len(self.polygons):  # the trunk's polygons carry no labels
-            n_feather = int(np.sum(self.polygons.table != BODY_TABLE))
-            feather_labels = feather_polygons(self.dove).labels
-            if self.plucked:
-                feather_labels = _without(feather_polygons(self.dove), self.plucked).labels
-            groups = [wing_group(lb) for lb in feather_labels][:n_feather]
-            groups += [-1] * (len(self.polygons) - len(groups))
+        groups = np.array([wing_group(lb) for lb in self.polygons.labels])
         area = float(np.pi * wingspan(self.dove.params) ** 2 / 8.0)
-        return InducedFlow(WING_GROUPS, np.array(groups), (area, area), "trunk")
+        return InducedFlow(WING_GROUPS, groups, (area, area), "trunk")
 
     def close(self) -> None:
         for fn in self._on_close:
