@@ -413,6 +413,20 @@ def database_table(db_path=None, feathers: str = "rigid") -> str:
     return str(cfg.get("table") or FlightConfig.table)
 
 
+def database_reference(header: dict) -> ReferenceWingbeat | None:
+    """The reference wingbeat a controller database was sampled around (its provenance's
+    Fourier coefficients and period), None where the header names none (a merged one)."""
+    prov = header.get("provenance") or {}
+    coef, period = prov.get("reference_coef"), prov.get("reference_period")
+    if coef is None or period is None:
+        return None
+    coef = np.asarray(coef, dtype=float)
+    if coef.ndim != 2 or not np.all(np.isfinite(coef)) or not float(period) > 0:
+        raise InputError("the database's reference wingbeat is malformed (its provenance's "
+                         "reference_coef / reference_period): retrain it")
+    return ReferenceWingbeat(coef, float(period), int(prov.get("reference_cycles", 0)))
+
+
 def make_lookahead(flight: DoveFlight, mode: str, refine: int, predict: str
                    ) -> ReferenceLookahead | None:
     """The :class:`~flapsim.bird.control.lookahead.ReferenceLookahead` ``mode`` asks for
@@ -500,6 +514,11 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
                          f"{flown}: fly it with --table {sampled} (its wingbeats are right only for "
                          "the forces they were sampled with)")
     prov = db.header.get("provenance", {})
+    ref = database_reference(db.header)
+    if ref is not None and not np.array_equal(ref.coef, flight.ref.coef):
+        # a database's wingbeats are offsets from the reference it was sampled around: the
+        # flight flies that one (a database made before the bundled capture changed, say)
+        flight.ref = ref
     P0 = np.asarray(prov.get("P0", with_tail_bias(p0(), FlightConfig.tail_bias_deg)), float)
     dS, dP = db.arrays["dS"], db.arrays["dP"]
     S = None

@@ -1,5 +1,5 @@
-"""The dove gliding in a wind tunnel: trunk welded at a pitch, wings held still in the
-reference wingbeat's mean pose, the air blowing from ahead. What a gliding wing gives at an
+"""The dove gliding in a wind tunnel: trunk welded at a pitch, wings held still and spread
+(:data:`GLIDE_POSE_DEG`), the air blowing from ahead. What a gliding wing gives at an
 angle of attack (lift, drag, each wing's force and downwash), against the published gliding
 and momentum-theory numbers (:mod:`flapsim.fluid.induced`, :func:`~flapsim.fluid.coefficients.bird_wing`).
 """
@@ -17,6 +17,10 @@ from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
 from flapsim.bird.flight.wingbeat import control_table, join, reference_wingbeat
 from flapsim.core.errors import InputError
 from flapsim.core.loading import load_model
+
+#: The gliding pose, deg: every wing joint straight (no sweep, twist, flex or dihedral), the
+#: tail level and its fan half open; tail spread is the last DOF.
+GLIDE_POSE_DEG = np.array([0.0] * (N_DOF - 1) + [20.0])
 
 
 @dataclass(frozen=True)
@@ -55,7 +59,8 @@ def glide_tunnel(pitch_deg: float, speed: float = 10.0, table: str = "bird_wing"
                        is_xml=True)
     dove = Dove.from_model(model, params)
     fl = DoveFlight(dove, reference_wingbeat(), table, (-speed, 0.0, 0.0), use_rollout=False)
-    hold = join(np.zeros(N_DOF), np.zeros(N_DOF), 1.0)  # every DOF at the reference's mean
+    # scales 0: no stroke; translations move every DOF from the reference's mean to the pose
+    hold = join(np.zeros(N_DOF), np.radians(GLIDE_POSE_DEG) - fl.ref.mean, 1.0)
     try:
         fl.reset(FlightConfig(speed=0.0, tail_bias_deg=0.0), hold)
         m, d = fl.model, fl.data

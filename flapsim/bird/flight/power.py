@@ -2,9 +2,11 @@
 repeated from the standard cruise start (by default the reference wingbeat P0 with the tail
 bias: the base controller), over whole wingbeats. ``studies/dove_power_budget.py`` prints it.
 
-In still air a polygon's lift is perpendicular to its relative flow, so it does no work on
-the polygon: the air takes energy out of the bird only through drag and skin friction,
-D . V_rel + F_f . V_rel with V_rel = -(the centroid's velocity over the step). What the
+A polygon's lift is perpendicular to its relative flow, so it does no work against it: the
+air takes energy out of the bird through drag and skin friction, D . V_rel + F_f . V_rel with
+V_rel = w - (the centroid's velocity over the step), and, where the wings see their own
+downwash w (the induced flow), through the work of every force on the air it pushes down,
+-F . w (the induced power; w = 0 in still air). What the
 servos put in (their generalized force times the step's mean velocity) goes there, into the
 joints' and tendons' dampers, and into the bird's mechanical energy (kinetic, gravitational
 and springs: MuJoCo's ``mjENBL_ENERGY``). :func:`power_budget` averages each term over the
@@ -12,7 +14,9 @@ wingbeats after ``skip``, with what the balance leaves (``other_W``: the feather
 twist-hinge torques and the integrator), the work rate of every generalized force against
 the energy's own rate (the work-energy theorem, which closes to ~1 % of the muscles' power
 when nothing acts but these forces), and the feathers' drag dissipation split by stroke
-(the left shoulder's flap velocity: down or up) and by angle of attack.
+(the left shoulder's flap velocity: down or up) and by angle of attack, the trunk's climb
+rate and change of speed (their net force along the flight over the weight: 0 in trim) and
+the peak aerodynamic force on both wings' feathers over the weight.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
 def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                  tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0,
                  p: np.ndarray | None = None, speed: float | None = None,
-                 config: FlightConfig | None = None, induced: bool = False) -> dict:
+                 config: FlightConfig | None = None, induced: bool | None = None) -> dict:
     """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
     of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
     tail bend added to P0; ``twist_bias_deg``: both shoulder twists added, + pronates), with
@@ -42,9 +46,9 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
     force over the weight and the mean forward speed (see the module). ``p``: fly this
     wingbeat instead (the biases are then not applied); ``speed``: the start's forward speed,
     m/s (default the cruise start's 7); ``config``: the start and the table (pitch, speed,
-    tail bias) as ``flapsim fly`` sets them, instead of the defaults; ``induced``: the dove
-    whose wings see their own downwash (:meth:`Dove.load`), whose downwash DOF are left out of
-    every work term (they are the air's, not the bird's)."""
+    tail bias) as ``flapsim fly`` sets them, instead of the defaults; ``induced``: whether the
+    dove's wings see their own downwash (:meth:`Dove.load`: by default they do), whose downwash
+    DOF are left out of every work term (they are the air's, not the bird's)."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
     cfg = config or FlightConfig()
@@ -63,6 +67,13 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     flap = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "l_shoulder_flap")]
     feather = fl.polygons.table != BODY_TABLE
+    # the wings' feathers (primaries and secondaries, not the tail's rectrices)
+    wing = np.array([lb.split("_")[-1][:1] in ("p", "s") and lb[:2] in ("l_", "r_")
+                     for lb in fl.polygons.labels])
+    # the downwash each polygon sees (its group's induced-flow DOF velocity; none: still air)
+    group = (fl.aero.induced.polygon_group if fl.aero.induced is not None
+             else np.full(len(fl.polygons.labels), -1))
+    sees = group >= 0
     steps = []
     try:
         fl.reset(cfg, p)
@@ -75,10 +86,17 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                 d.ctrl[:] = ctrl[k]
                 mujoco.mj_forward(m, d)
                 rep = fl.aero.evaluate(d)
+                air = np.zeros((len(group), 3))
+                if sees.any():
+                    air[sees] = d.qvel[fl.aero.induced_dofs].reshape(-1, 3)[group[sees]]
                 steps.append({
+                    "air": air,
                     "wb": wb, "points": rep.points, "drag": rep.drag, "lift": rep.lift,
                     "friction": rep.friction, "aoa": rep.aoa, "energy": float(d.energy.sum()),
                     "up": float((rep.drag + rep.lift + rep.friction)[:, 2].sum()),
+                    "wing_force": float(np.linalg.norm(
+                        (rep.drag + rep.lift + rep.friction)[wing].sum(axis=0))),
+                    "z": float(d.qpos[2]), "time": float(d.time),
                     "speed": float(np.hypot(d.qvel[0], d.qvel[1])),
                     "down": bool(d.qvel[flap] < 0.0), "v0": d.qvel.copy(),
                     "f_act": d.qfrc_actuator.copy(), "f_damp": d.qfrc_damper.copy(),
@@ -91,7 +109,16 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
     use = [k for k in range(len(steps) - 1) if steps[k]["wb"] >= skip]
     bird_dof = np.ones(m.nv, dtype=bool)
     bird_dof[fl.aero.induced_dofs] = False
-    return _summarise(steps, use, feather, m.opt.timestep, dove.mass, bird_dof)
+    out = _summarise(steps, use, feather, m.opt.timestep, dove.mass, bird_dof)
+    first, last = steps[use[0]], steps[use[-1] + 1]
+    T = last["time"] - first["time"]
+    out["climb_m_s"] = (last["z"] - first["z"]) / T
+    out["accel_m_s2"] = (last["speed"] - first["speed"]) / T
+    # the mean net force along the flight over the weight: m a / (m g)
+    out["net_forward_per_weight"] = out["accel_m_s2"] / 9.81
+    out["peak_wing_force_per_weight"] = (max(steps[k]["wing_force"] for k in use)
+                                         / (dove.mass * 9.81))
+    return out
 
 
 def _summarise(steps: list[dict], use: list[int], feather: np.ndarray, dt: float,
@@ -101,10 +128,15 @@ def _summarise(steps: list[dict], use: list[int], feather: np.ndarray, dt: float
     if bird_dof is not None:
         v = v * bird_dof
     work = lambda key: np.einsum("ij,ij->i", col(key), v)  # noqa: E731
-    # still air: the relative flow is minus the centroid's velocity over the step
-    vrel = -(col("points", 1) - col("points")) / dt
+    # the relative flow: the air's velocity at the polygon (still air, or the wing's own
+    # downwash) less the centroid's velocity over the step
+    air = col("air")
+    vrel = air - (col("points", 1) - col("points")) / dt
     drag, lift, fric = (np.einsum("sij,sij->si", col(key), vrel)
                         for key in ("drag", "lift", "friction"))
+    # what the bird loses to the air is -F . v = F . vrel - F . w: besides the dissipation
+    # F . vrel, the work its forces do on the air they push down (the induced power)
+    induced = -np.einsum("sij,sij->s", col("drag") + col("lift") + col("friction"), air)
     down, aoa = col("down"), np.degrees(col("aoa"))
     T = len(use) * dt
     out = {
@@ -115,6 +147,7 @@ def _summarise(steps: list[dict], use: list[int], feather: np.ndarray, dt: float
         "drag_body_W": float(drag[:, ~feather].sum(1).mean()),
         "friction_W": float(fric.sum(1).mean()),
         "lift_work_W": float(lift.sum(1).mean()),
+        "induced_W": float(induced.mean()),
         "mechanical_energy_rate_W": float((col("energy", 1) - col("energy")).sum() / T),
         "work_rate_all_forces_W": float(work("f_all").mean()),
         "aero_up_per_weight": float(col("up").mean() / (mass * 9.81)),
@@ -125,7 +158,8 @@ def _summarise(steps: list[dict], use: list[int], feather: np.ndarray, dt: float
     # what the air and the dampers do not account for: the twist hinges' own torques
     # (stops, the plates' inertia), the springs' and gravity's work being in the energy
     out["other_W"] = (out["muscle_W"] - out["dampers_W"] - out["drag_feathers_W"]
-                      - out["drag_body_W"] - out["friction_W"] - out["mechanical_energy_rate_W"])
+                      - out["drag_body_W"] - out["friction_W"] - out["induced_W"]
+                      - out["mechanical_energy_rate_W"])
     fd = drag[:, feather]
     out["drag_feathers_downstroke_W"] = float(fd[down].sum() / len(use))
     out["drag_feathers_upstroke_W"] = float(fd[~down].sum() / len(use))

@@ -19,12 +19,15 @@ Regenerate the data file with ``python -m flapsim.bird.flight.synthetic_capture 
 from __future__ import annotations
 
 import argparse
+import functools
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from flapsim.bird.body.params import DOF_NAMES, N_DOF
 from flapsim.bird.flight.capture import DATA_FILE, SOURCES, CaptureSet, segment_cycles
+from flapsim.bird.flight.wingbeat import ReferenceWingbeat
+from flapsim.core.errors import InputError
 
 _COL = {n: k for k, n in enumerate(DOF_NAMES)}
 
@@ -33,8 +36,10 @@ _COL = {n: k for k, n in enumerate(DOF_NAMES)}
 class Kinematics:
     """The mean (symmetric) synthetic wingbeat, angles in degrees."""
 
+    speed_m_s: float = 3.5
+    """Flight speed these kinematics are flown at, m/s (conditions vary about it)."""
     frequency_hz: float = 9.3
-    """Wingbeat frequency at 3.5 m/s (paper: 8-11 Hz; pigeon 6.1-9.6 Hz, Berg & Biewener 2008)."""
+    """Wingbeat frequency at ``speed_m_s`` (paper: 8-11 Hz; pigeon 6.1-9.6 Hz, Berg & Biewener 2008)."""
     downstroke_fraction: float = 0.55
     """Share of the cycle spent in the downstroke (approx. 50-60%, pigeon/dove)."""
     flap_mean_deg: float = 12.0
@@ -53,7 +58,10 @@ class Kinematics:
     pronation_mean_deg: float = 0.0
     """Mean shoulder twist."""
     elbow_twist_deg: float = 8.0
-    """Extra pronation of the forearm at mid-downstroke."""
+    """Extra pronation of the forearm at mid-downstroke (the hand wing's twist relative to
+    the arm wing; supination at mid-upstroke)."""
+    elbow_twist_mean_deg: float = 0.0
+    """Mean pronation of the forearm relative to the arm wing."""
     elbow_flex_min_deg: float = 6.0
     """Elbow flexion with the wing spread (downstroke)."""
     elbow_flex_max_deg: float = 55.0
@@ -82,6 +90,8 @@ class Variation:
     """Climb angle change per wingbeat (paper's capture)."""
     speed_range: tuple[float, float] = (2.0, 5.1)
     """Flight speed, m/s (paper's capture)."""
+    speed_step_m_s: float = 0.3
+    """Standard deviation of the speed's random walk from cycle to cycle, m/s."""
     freq_per_speed: float = -0.25
     """Frequency change per m/s faster, Hz."""
     sweep_per_steer: float = 0.8
@@ -110,6 +120,30 @@ class Variation:
     """Per-frame measurement noise, deg."""
 
 
+#: The paper's capture conditions: slow indoor flight at 2-5 m/s (the dataclasses' defaults).
+SLOW = (Kinematics(), Variation())
+
+#: Cruise: the kinematic model at 8.5 m/s searched by ``studies/dove_cruise_kinematics.py`` for
+#: the least servo power at which the free dove holds height and speed (bird-wing section,
+#: induced flow), inside published cruise ranges: 7-9.5 Hz (Pennycuick's 8.3 Hz for this dove,
+#: birds fly at 0.81-1.05 of it), downstroke 50-56 % of the cycle, Strouhal number <= 0.4
+#: (Taylor, Nudds & Thomas 2003), a flexed upstroke; the hand wing twists against the arm wing
+#: through the elbow's twist. Conditions vary over 5-12 m/s with the paper's turns and climbs;
+#: the frequency barely changes with speed (pigeons 6-20 m/s, Tobalske & Dial 1996).
+CRUISE = (
+    Kinematics(speed_m_s=8.5, frequency_hz=8.120, downstroke_fraction=0.544, flap_mean_deg=-13.522,
+               flap_amplitude_deg=47.152, sweep_mean_deg=-13.349, sweep_top_deg=14.107,
+               sweep_mid_deg=0.291, pronation_mean_deg=2.893, pronation_deg=11.921,
+               elbow_twist_mean_deg=-11.160, elbow_twist_deg=16.158, elbow_flex_max_deg=36.613,
+               wrist_flex_max_deg=35.957, flex_peak_phase=0.727, tail_spread_deg=27.310),
+    Variation(speed_range=(5.0, 12.0), speed_step_m_s=0.5, freq_per_speed=-0.05,
+              tail_spread_per_speed=-2.0),
+)
+
+PRESETS = {"cruise": CRUISE, "slow": SLOW}
+"""The generator's kinematics and variation by name; the bundled capture is ``cruise``."""
+
+
 def warp(phase: np.ndarray, down: float) -> np.ndarray:
     """Map cycle phase to a 'stroke phase' u whose first half is the downstroke."""
     p = np.mod(phase, 1.0)
@@ -117,18 +151,20 @@ def warp(phase: np.ndarray, down: float) -> np.ndarray:
 
 
 def cycle_angles(phase: np.ndarray, k: Kinematics, steer: float = 0.0, climb: float = 0.0,
-                 speed: float = 3.5, var: Variation | None = None,
+                 speed: float | None = None, var: Variation | None = None,
                  noise: np.ndarray | None = None) -> np.ndarray:
     """(n, 14) angles in rad for phases in [0, 1) of one cycle with these conditions.
 
-    ``noise`` is (14, 2): relative amplitude and offset noise (deg) per DOF.
+    ``noise`` is (14, 2): relative amplitude and offset noise (deg) per DOF; ``speed``
+    defaults to the kinematics' own.
     """
     var = var or Variation()
+    speed = k.speed_m_s if speed is None else speed
     u = warp(np.asarray(phase, float), k.downstroke_fraction)
     c, s = np.cos(2 * np.pi * u), np.sin(2 * np.pi * u)
     flex = 0.5 - 0.5 * np.cos(2 * np.pi * (u - k.flex_peak_phase + 0.5))  # 0 .. 1, peak at u=peak
     out = np.zeros((len(u), N_DOF))
-    dv = speed - 3.5
+    dv = speed - k.speed_m_s
     for side, turn in (("l", 1.0), ("r", -1.0)):
         # left turn (steer > 0): left wing is the inside wing
         inside = turn * steer
@@ -143,7 +179,7 @@ def cycle_angles(phase: np.ndarray, k: Kinematics, steer: float = 0.0, climb: fl
             + (k.pronation_deg + var.pronation_per_climb * climb) * s)
         out[:, _COL[f"{side}_elbow_flex"]] = (k.elbow_flex_min_deg
                                              + (k.elbow_flex_max_deg - k.elbow_flex_min_deg) * flex)
-        out[:, _COL[f"{side}_elbow_twist"]] = k.elbow_twist_deg * s
+        out[:, _COL[f"{side}_elbow_twist"]] = k.elbow_twist_mean_deg + k.elbow_twist_deg * s
         out[:, _COL[f"{side}_wrist_flex"]] = (k.wrist_flex_min_deg
                                              + (k.wrist_flex_max_deg - k.wrist_flex_min_deg) * flex)
     out[:, _COL["tail_bend"]] = (k.tail_bend_deg + var.tail_bend_per_climb * climb
@@ -153,6 +189,20 @@ def cycle_angles(phase: np.ndarray, k: Kinematics, steer: float = 0.0, climb: fl
         mean = out.mean(axis=0)
         out = mean + (out - mean) * (1 + noise[:, 0]) + noise[:, 1]
     return np.radians(out)
+
+
+@functools.cache
+def slow_reference() -> ReferenceWingbeat:
+    """The reference wingbeat of the paper's slow-flight capture conditions (:data:`SLOW`, the
+    seed 2013 draw with its mirror): what the paper's figures of the feathers were made with."""
+    return ReferenceWingbeat.from_capture(synthesize(2013, kin=SLOW[0], var=SLOW[1]).with_mirror())
+
+
+def kinematic_reference(kin: Kinematics, n_phase: int = 96) -> ReferenceWingbeat:
+    """The reference wingbeat of kinematics ``kin`` flown straight and level at its own speed
+    without noise: what averaging many symmetric capture cycles of it converges to."""
+    cycle = cycle_angles(np.arange(n_phase) / n_phase, kin)
+    return ReferenceWingbeat.from_cycle(cycle, 1.0 / kin.frequency_hz)
 
 
 def _walk(rng: np.random.Generator, n: int, lo: float, hi: float, step: float) -> np.ndarray:
@@ -188,13 +238,13 @@ def synthesize(seed: int = 2013, takes: int = 10, cycles_per_take: int = 15, rat
         n = cycles_per_take + 2  # one spare cycle each end: segmentation needs the next top
         steer = _walk(rng, n, *var.steering_range_deg, 2.5)
         elev = _walk(rng, n, *var.elevation_range_deg, 1.5)
-        speed = _walk(rng, n, *var.speed_range, 0.3)
+        speed = _walk(rng, n, *var.speed_range, var.speed_step_m_s)
         if take < len(extremes):
             a, b, c = extremes[take]
             steer[3] = a if a is not None else steer[3]
             elev[3] = b if b is not None else elev[3]
             speed[3] = c if c is not None else speed[3]
-        period = 1.0 / (kin.frequency_hz + var.freq_per_speed * (speed - 3.5))
+        period = 1.0 / (kin.frequency_hz + var.freq_per_speed * (speed - kin.speed_m_s))
         period *= 1 + rng.normal(0, var.noise_frequency, n)
         noise = np.stack([rng.normal(0, var.noise_scale, (n, N_DOF)),
                           rng.normal(0, var.noise_offset_deg, (n, N_DOF))], axis=2)
@@ -238,11 +288,14 @@ def synthesize(seed: int = 2013, takes: int = 10, cycles_per_take: int = 15, rat
                       True, source)
 
 
-def write_reference(path=DATA_FILE, seed: int = 2013) -> CaptureSet:
-    cap = synthesize(seed)
-    k, v = Kinematics(), Variation()
+def write_reference(path=DATA_FILE, seed: int = 2013, preset: str = "cruise") -> CaptureSet:
+    """Write the synthetic capture of ``preset`` (:data:`PRESETS`) drawn with ``seed``."""
+    if preset not in PRESETS:
+        raise InputError(f"unknown capture preset {preset!r}; choose one of {', '.join(PRESETS)}")
+    k, v = PRESETS[preset]
+    cap = synthesize(seed, kin=k, var=v)
     cap.save(path, generator=np.array("flapsim.bird.flight.synthetic_capture.synthesize"),
-             seed=np.array(seed), kinematics=np.array(repr(asdict(k))),
+             seed=np.array(seed), preset=np.array(preset), kinematics=np.array(repr(asdict(k))),
              variation=np.array(repr(asdict(v))))
     return cap
 
@@ -251,8 +304,10 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description="Regenerate the bundled synthetic dove capture.")
     ap.add_argument("--seed", type=int, default=2013, help="the draw (default 2013, the bundled one's)")
     ap.add_argument("--out", default=str(DATA_FILE), help="output .npz (default: the bundled file)")
+    ap.add_argument("--preset", choices=tuple(PRESETS), default="cruise",
+                    help="cruise (5-11 m/s, the bundled file's) or slow (the paper's capture, 2-5 m/s)")
     args = ap.parse_args(argv)
-    cap = write_reference(args.out, args.seed)
+    cap = write_reference(args.out, args.seed, args.preset)
     f = 1.0 / cap.durations
     amp = np.degrees(np.ptp(cap.cycle_matrix()[:, :, 0], axis=1))
     print(f"wrote {args.out}: {cap.n_cycles} cycles, {len(cap.angles)} frames at {cap.rate_hz} Hz")

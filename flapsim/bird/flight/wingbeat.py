@@ -137,11 +137,22 @@ class ReferenceWingbeat:
         if cap.n_cycles < 1:
             raise InputError("the capture has no cycles to average")
         mean_cycle = cap.cycle_matrix(n_phase).mean(axis=0)  # (n_phase, 14)
-        phase = np.arange(n_phase) / n_phase
+        return cls.from_cycle(mean_cycle, float(cap.durations.mean()), harmonics, cap.n_cycles)
+
+    @classmethod
+    def from_cycle(cls, cycle: np.ndarray, period: float, harmonics: int = 8,
+                   n_cycles: int = 1) -> ReferenceWingbeat:
+        """The Fourier fit of one cycle ``(n_phase, 14)`` sampled at phases j / n_phase, rad,
+        lasting ``period`` s (a kinematic model's cycle, or the average of a capture's)."""
+        cycle = np.asarray(cycle, dtype=float)
+        if cycle.ndim != 2 or cycle.shape[1] != N_DOF or len(cycle) < 2 * harmonics + 1:
+            raise InputError(f"a cycle is (n_phase >= {2 * harmonics + 1}, {N_DOF}) angles, got "
+                             f"shape {cycle.shape}")
+        phase = np.arange(len(cycle)) / len(cycle)
         dummy = cls(np.zeros((N_DOF, 2 * harmonics + 1)), 1.0, 0)
         B = dummy._basis(phase)
-        coef, *_ = np.linalg.lstsq(B, mean_cycle, rcond=None)
-        return cls(coef.T.copy(), float(cap.durations.mean()), cap.n_cycles)
+        coef, *_ = np.linalg.lstsq(B, cycle, rcond=None)
+        return cls(coef.T.copy(), float(period), n_cycles)
 
     def evaluate(self, p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Target angles (n, 14) and angular velocities (n, 14) of wingbeat ``p`` at times

@@ -51,22 +51,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
                    help="write a chase-camera video (.mp4 or .gif)")
     add_output_arg(p, "--out", kinds=(".npz",), help="write the trajectory (.npz)")
-    p.add_argument("--speed", type=float, default=7.0, help="initial speed, m/s (default 7)")
+    p.add_argument("--speed", type=float, default=FlightConfig.speed,
+                   help=f"initial speed, m/s (default {FlightConfig.speed:g}: the cruise capture's)")
     p.add_argument("--pitch-deg", type=float, default=0.0, help="initial trunk pitch (default 0)")
-    p.add_argument("--tail-bias-deg", type=float, default=17.0,
-                   help="tail bend added to the reference wingbeat (paper: 17)")
+    p.add_argument("--tail-bias-deg", type=float, default=FlightConfig.tail_bias_deg,
+                   help=f"tail bend added to the reference wingbeat (default "
+                        f"{FlightConfig.tail_bias_deg:g}, which trims it; the paper's: 17)")
     p.add_argument("--table", default=None,
-                   help="feather coefficient table (default dickinson1999_profile; a learned "
+                   help=f"feather coefficient table (default {FlightConfig.table}; a learned "
                         "controller's default: the table its database was sampled with)")
     p.add_argument("--python-loop", action="store_true",
                    help="step in a Python loop instead of mujoco.rollout (same result)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="rigid feather plates (default) or modal feathers that bend and twist "
                         "(4 modes each, the paper's sec. 6: slower)")
-    p.add_argument("--induced", action="store_true",
-                   help="the wings see the air their own lift pushes down (momentum theory, "
-                        "flapsim.fluid.induced; base controller, rigid feathers; not the default: "
-                        "the bundled wingbeat and databases were made without it)")
+    p.add_argument("--induced", action=argparse.BooleanOptionalAction, default=None,
+                   help="whether the wings see the air their own lift pushes down (momentum "
+                        "theory, flapsim.fluid.induced): the default with rigid feathers, which "
+                        "the bundled wingbeat and database were made with; --no-induced flies "
+                        "without it; modal feathers do not see it yet")
     p.add_argument("--power", action="store_true",
                    help="also the base flight's energy balance: the servos' power, where the air "
                         "and the dampers take it (feather drag by stroke and angle of attack), "
@@ -108,11 +111,14 @@ def run(args: argparse.Namespace) -> dict:
         if args.feathers != "rigid":
             raise InputError("--power needs rigid feathers (the modal feathers' forces are not "
                              "split by polygon)")
-    if args.induced and (args.path or args.controller == "learned" or args.db or args.roll_deg
-                         or args.feathers != "rigid"):
-        raise InputError("--induced flies the base controller with rigid feathers (the "
-                         "databases were sampled without the downwash): drop --controller "
-                         "learned, --path, --db, --roll-deg and --feathers modal")
+    if args.induced and args.feathers != "rigid":
+        raise InputError("--induced needs rigid feathers (modal feathers do not see the induced "
+                         "flow yet): drop --induced or --feathers modal")
+    if args.induced is False and (args.path or args.controller == "learned" or args.db
+                                  or args.roll_deg):
+        raise InputError("--no-induced flies the base controller only (the databases were "
+                         "sampled with the induced flow): drop --controller learned, --path, "
+                         "--db and --roll-deg")
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")
@@ -126,7 +132,7 @@ def run(args: argparse.Namespace) -> dict:
     result = {
         "wingbeats": args.wingbeats,
         "feathers": args.feathers,
-        "induced": bool(args.induced),
+        "induced": dove.induced,
         "model_hash": dove.hash(),
         "mass": dove.mass,
         "config": {"speed": cfg.speed, "pitch_deg": cfg.pitch_deg,

@@ -66,8 +66,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: pre-state angular velocity within +-this per body axis, deg/s "
                         "(default 4, the paper's)")
     p.add_argument("--pre-speed", type=float, default=None, metavar="M_S",
-                   help="phase 1: the cruise speed pre-states are drawn around, m/s (default 7, "
-                        "the paper's)")
+                   help="phase 1: the cruise speed pre-states are drawn around, m/s (default: "
+                        "the cruise start's, 8.5)")
     p.add_argument("--centre-flap-scale", type=float, default=None, metavar="S",
                    help="phase 1: draw the wingbeats around P0 with both shoulder-flap strokes "
                         "scaled by S (default 1: around P0)")

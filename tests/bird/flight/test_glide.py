@@ -30,7 +30,7 @@ def test_each_sides_downwash_is_the_momentum_value_of_its_force():
 
 
 def _drag_at_weight(induced: bool) -> tuple[float, float]:
-    pts = [glide_tunnel(p, SPEED, induced=induced) for p in (-6.0, -4.0, -2.0, 0.0)]
+    pts = [glide_tunnel(p, SPEED, induced=induced) for p in (-2.0, 0.0, 2.0, 4.0)]
     lift = np.array([x.lift_N for x in pts])
     drag = np.array([x.drag_N for x in pts])
     assert np.all(np.diff(lift) > 0)  # below the stall: interpolation is safe
