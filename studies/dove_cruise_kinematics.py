@@ -11,7 +11,8 @@ controller flies it (P0 with a tail bias, searched with it: the capture's tail b
 captured dove's -10 deg) from the cruise start; its cost is the servos'
 mean power plus 30 W per m/s of climb or sink, 6 W per m/s^2 of speed change and 0.05 W per
 degree of pitch drift per wingbeat (a trimmed wingbeat pays nothing extra); a cycle that
-leaves a joint's range costs 100 W and more, one over Strouhal number 0.4 50 W and more.
+comes closer than 14 deg to a joint's range at its capture's extreme conditions costs
+100 W and more, one over Strouhal number 0.4 50 W and more.
 
     python studies/dove_cruise_kinematics.py --speed 8 --json cruise.json
     python -m flapsim.bird.flight.synthetic_capture      # the capture from CRUISE, then
@@ -33,8 +34,14 @@ from flapsim.bird.body.model import Dove, wingspan
 from flapsim.bird.body.params import dof_ranges
 from flapsim.bird.flight.dove_flight import DoveFlight
 from flapsim.bird.flight.power import wingbeat_balance
-from flapsim.bird.flight.synthetic_capture import Kinematics, cycle_angles, kinematic_reference
-from flapsim.bird.flight.wingbeat import p0, reference_wingbeat, with_tail_bias
+from flapsim.bird.flight.synthetic_capture import (
+    CRUISE,
+    Kinematics,
+    Variation,
+    cycle_angles,
+    kinematic_reference,
+)
+from flapsim.bird.flight.wingbeat import TAIL_BEND, p0, reference_wingbeat, with_tail_bias
 
 #: (Kinematics field, low, high): the cruise ranges searched (degrees unless named)
 KNOBS = (
@@ -110,10 +117,27 @@ def kinematics(x: np.ndarray, base: Kinematics) -> tuple[Kinematics, float]:
     return replace(base, **values), bias
 
 
-def range_excess_deg(kin: Kinematics, lo: np.ndarray, hi: np.ndarray) -> float:
-    """How far (deg, summed over DOF) the noise-free cycle leaves the joint ranges less 1 deg."""
-    q = cycle_angles(np.arange(96) / 96, kin)
-    margin = np.radians(1.0)
+#: How far inside every joint range the capture's cycles must stay, deg: the 10 deg a
+#: controller samples around them with (``tests/bird/body/test_model.py``), plus 4 deg for
+#: the cycles' own noise (3 % of the stroke, 1.5 deg offsets) beyond their conditions' extremes
+RANGE_MARGIN_DEG = 14.0
+
+
+def range_excess_deg(kin: Kinematics, lo: np.ndarray, hi: np.ndarray, bias: float = 0.0,
+                     var: Variation | None = None) -> float:
+    """How far (deg, summed over DOF) the noise-free cycle at the capture's extreme conditions
+    (every corner of its steering, climb and speed ranges; the tail with and without ``bias``)
+    comes closer than :data:`RANGE_MARGIN_DEG` to the joint ranges."""
+    var = var or CRUISE[1]
+    phase = np.arange(96) / 96
+    qs = [cycle_angles(phase, kin, st, cl, sp, var)
+          for st in var.steering_range_deg for cl in var.elevation_range_deg
+          for sp in var.speed_range]
+    q = np.concatenate(qs)
+    biased = q.copy()
+    biased[:, TAIL_BEND] += np.radians(bias)
+    q = np.concatenate([q, biased])
+    margin = np.radians(RANGE_MARGIN_DEG)
     over = np.maximum(q - (hi - margin), 0).max(0) + np.maximum((lo + margin) - q, 0).max(0)
     return float(np.degrees(over[np.isfinite(over)]).sum())
 
@@ -140,7 +164,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     def cost(x: np.ndarray) -> float:
         evals[0] += 1
         kin, bias = kinematics(x, base)
-        excess = range_excess_deg(kin, lo, hi)
+        excess = range_excess_deg(kin, lo, hi, bias)
         if excess > 0:
             return 100.0 + excess
         st = strouhal(kin, semispan, args.speed)

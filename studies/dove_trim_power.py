@@ -9,7 +9,7 @@ Each candidate is projected into the joint ranges and flown free from the cruise
 nothing extra). The best is then measured by ``power_budget`` (lift/weight, the share of
 the feathers' dissipation at 30-60 deg angle of attack, cost of transport).
 
-    python studies/dove_trim_power.py --table bird_wing --induced --speed 8.5 --json trim.json
+    python studies/dove_trim_power.py --speed 7 --json trim7.json     # a point of the power curve
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from scipy.optimize import differential_evolution
 
 from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import DOF_NAMES, dof_ranges
-from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
 from flapsim.bird.flight.power import power_budget, wingbeat_balance
 from flapsim.bird.flight.wingbeat import p0, project_to_ranges, with_tail_bias
 
@@ -45,7 +45,8 @@ def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--table", default="bird_wing", help="feather coefficient table")
-    ap.add_argument("--induced", action="store_true", help="wings see their own downwash")
+    ap.add_argument("--induced", action=argparse.BooleanOptionalAction, default=True,
+                    help="whether the wings see their own downwash (default: they do)")
     ap.add_argument("--speed", type=float, default=8.5, help="cruise start speed, m/s")
     ap.add_argument("--wingbeats", type=int, default=8, help="wingbeats flown per candidate")
     ap.add_argument("--skip", type=int, default=3, help="wingbeats flown before measuring")
@@ -57,8 +58,9 @@ def parser() -> argparse.ArgumentParser:
 
 
 def wingbeat(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, ref) -> np.ndarray:
-    """The 29-number wingbeat of knob values ``x`` (tail bias 17 deg under the tail knob)."""
-    p = with_tail_bias(p0(), 17.0)
+    """The 29-number wingbeat of knob values ``x`` (the base flight's tail bias under the tail
+    knob)."""
+    p = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
     for (_, dof, kind, _, _), v in zip(KNOBS, x, strict=True):
         if kind == "timewarp":
             p[-1] = v

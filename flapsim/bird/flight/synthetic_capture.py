@@ -131,11 +131,11 @@ SLOW = (Kinematics(), Variation())
 #: through the elbow's twist. Conditions vary over 5-12 m/s with the paper's turns and climbs;
 #: the frequency barely changes with speed (pigeons 6-20 m/s, Tobalske & Dial 1996).
 CRUISE = (
-    Kinematics(speed_m_s=8.5, frequency_hz=8.120, downstroke_fraction=0.544, flap_mean_deg=-13.522,
-               flap_amplitude_deg=47.152, sweep_mean_deg=-13.349, sweep_top_deg=14.107,
-               sweep_mid_deg=0.291, pronation_mean_deg=2.893, pronation_deg=11.921,
-               elbow_twist_mean_deg=-11.160, elbow_twist_deg=16.158, elbow_flex_max_deg=36.613,
-               wrist_flex_max_deg=35.957, flex_peak_phase=0.727, tail_spread_deg=27.310),
+    Kinematics(speed_m_s=8.5, frequency_hz=8.439, downstroke_fraction=0.543, flap_mean_deg=-5.516,
+               flap_amplitude_deg=40.634, sweep_mean_deg=0.681, sweep_top_deg=12.550,
+               sweep_mid_deg=-9.487, pronation_mean_deg=6.583, pronation_deg=3.821,
+               elbow_twist_mean_deg=-2.552, elbow_twist_deg=7.624, elbow_flex_max_deg=45.249,
+               wrist_flex_max_deg=31.988, flex_peak_phase=0.690, tail_spread_deg=25.577),
     Variation(speed_range=(5.0, 12.0), speed_step_m_s=0.5, freq_per_speed=-0.05,
               tail_spread_per_speed=-2.0),
 )

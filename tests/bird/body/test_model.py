@@ -8,7 +8,7 @@ import pytest
 
 from flapsim.bird.body.model import Dove, build_xml, can_touch_anything, model_path
 from flapsim.bird.body.params import DOF_NAMES, DoveParams
-from flapsim.bird.flight.dove_flight import fly
+from flapsim.bird.flight.dove_flight import FlightConfig, fly
 from flapsim.core.errors import DataFileError
 
 
@@ -87,12 +87,12 @@ def test_ranges_contain_the_reference_and_every_capture_cycle_with_margin(dove):
     lo, hi = dof_ranges(dove.params)
     assert lo.shape == hi.shape == (14,) and (lo < hi).all()
     ref = reference_wingbeat()
-    p = with_tail_bias(p0(), 17.0)  # the flown base wingbeat (paper's +17 deg tail bias)
+    p = with_tail_bias(p0(), FlightConfig.tail_bias_deg)  # the flown base wingbeat
     q, _ = ref.evaluate(p, np.linspace(0.0, ref.duration(p), 400, endpoint=False))
     cap = reference_capture(with_mirror=True).angles  # every frame of every cycle, both hands
     tail = DOF_NAMES.index("tail_bend")
     biased = cap.copy()
-    biased[:, tail] += np.radians(17.0)  # capture cycles as flown with the tail bias
+    biased[:, tail] += np.radians(FlightConfig.tail_bias_deg)  # cycles as flown, tail biased
     # a controller samples around these poses: every one must sit 10 deg inside the ranges
     # (the parameter file's ranges were placed with >= 13 deg to spare; 10 deg is the contract)
     margin = np.radians(10.0)
