@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from flapsim.bird.body.model import Dove
+from flapsim.bird.control.controller import database_speed
 from flapsim.bird.control.targets import GRAVITY
 from flapsim.bird.flight.capture import DATA_FILE, load_capture
 from flapsim.bird.flight.limits import turn_radius
@@ -129,7 +130,8 @@ def run_path(sc: Scenario, opt: EvalOptions) -> dict:
         path = shape(**args)
     task = Task(path, wind=tuple(p.get("wind", (0.0, 0.0, 0.0))), flow=_flow(p.get("flow", ())),
                 plucked=tuple(p.get("plucked", ())), tube_m=p.get("tube_m", 3.0),
-                feathers=opt.feathers, speed=float(p.get("speed", Task.speed)))
+                feathers=opt.feathers,
+                speed=float(p.get("speed", database_speed(opt.db, opt.feathers))))
     r, files = _fly(sc, opt, task)
     geometry = path.geometry()
     extra = {"path_geometry": geometry.as_dict()}

@@ -413,6 +413,15 @@ def database_table(db_path=None, feathers: str = "rigid") -> str:
     return str(cfg.get("table") or FlightConfig.table)
 
 
+def database_speed(db_path=None, feathers: str = "rigid") -> float:
+    """The cruise speed a controller database's pre-states were drawn around, m/s (default:
+    the bundled one of the ``feathers`` dove): the speed its flights are asked to hold unless
+    told otherwise (its samples describe the bird there)."""
+
+    cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
+    return float(cfg.get("cruise_speed") or FlightConfig.speed)
+
+
 def database_reference(header: dict) -> ReferenceWingbeat | None:
     """The reference wingbeat a controller database was sampled around (its provenance's
     Fourier coefficients and period), None where the header names none (a merged one)."""

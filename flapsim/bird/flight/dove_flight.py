@@ -62,7 +62,7 @@ class FlightConfig:
     """Feather CL/CD table: a bird wing's section, attached lift to the stall at 17 deg with a
     bird wing's profile drag, blended into the revolving dove wing's plateau past it
     (:func:`~flapsim.fluid.coefficients.bird_wing`; the robofly fits stay selectable)."""
-    tail_bias_deg: float = 26.0
+    tail_bias_deg: float = 22.45
     """Tail bend added to the reference wingbeat, deg (+: tail up): the paper's way to trim its
     capture's average wingbeat for level flight (sec. 7: +17 deg); this value trims the bundled
     cruise capture's (``studies/dove_cruise_kinematics.py --trim-capture``)."""

@@ -170,8 +170,8 @@ class Task:
     """What to fly and under what."""
 
     path: FlightPath
-    speed: float = 7.0
-    """Flight speed asked, m/s."""
+    speed: float = FlightConfig.speed
+    """Flight speed asked, m/s (the cruise start's: the database was sampled around it)."""
     pushes: tuple[PushSpec, ...] = ()
     plucked: tuple[str, ...] = ()
     wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
