@@ -88,7 +88,7 @@ def parser() -> argparse.ArgumentParser:
 
 def trim_capture(fl: DoveFlight, args: argparse.Namespace) -> int:
     """The tail bias trimming the bundled capture's reference wingbeat (a 1-D search)."""
-    fl.ref = reference_wingbeat()
+    fl.ref = reference_wingbeat("cruise")
 
     def cost(bias: float) -> float:
         b = wingbeat_balance(fl, with_tail_bias(p0(), bias), args.wingbeats, args.skip, args.speed)

@@ -9,7 +9,8 @@ Each candidate is projected into the joint ranges and flown free from the cruise
 nothing extra). The best is then measured by ``power_budget`` (lift/weight, the share of
 the feathers' dissipation at 30-60 deg angle of attack, cost of transport).
 
-    python studies/dove_trim_power.py --speed 7 --json trim7.json     # a point of the power curve
+    python studies/dove_trim_power.py --table bird_wing --induced --speed 8.5 --json trim.json
+    python studies/dove_trim_power.py --cruise --speed 7 --json trim7.json   # the cruise dove
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ from scipy.optimize import differential_evolution
 
 from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import DOF_NAMES, dof_ranges
-from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.dove_flight import CRUISE, DoveFlight, FlightConfig
 from flapsim.bird.flight.power import power_budget, wingbeat_balance
-from flapsim.bird.flight.wingbeat import p0, project_to_ranges, with_tail_bias
+from flapsim.bird.flight.wingbeat import p0, project_to_ranges, reference_wingbeat, with_tail_bias
 
 #: (name, DOF on both sides or the tail, "scale" or "offset", low, high); offsets in deg
 KNOBS = (
@@ -45,8 +46,10 @@ def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--table", default="bird_wing", help="feather coefficient table")
-    ap.add_argument("--induced", action=argparse.BooleanOptionalAction, default=True,
-                    help="whether the wings see their own downwash (default: they do)")
+    ap.add_argument("--induced", action="store_true", help="wings see their own downwash")
+    ap.add_argument("--cruise", action="store_true",
+                    help="around the cruise dove's wingbeat (the cruise capture's reference and "
+                         "tail bias, bird-wing section, induced flow) instead of the paper's")
     ap.add_argument("--speed", type=float, default=8.5, help="cruise start speed, m/s")
     ap.add_argument("--wingbeats", type=int, default=8, help="wingbeats flown per candidate")
     ap.add_argument("--skip", type=int, default=3, help="wingbeats flown before measuring")
@@ -57,10 +60,9 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
-def wingbeat(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, ref) -> np.ndarray:
-    """The 29-number wingbeat of knob values ``x`` (the base flight's tail bias under the tail
-    knob)."""
-    p = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
+def wingbeat(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, ref, bias: float = 17.0) -> np.ndarray:
+    """The 29-number wingbeat of knob values ``x`` (tail bias ``bias`` deg under the tail knob)."""
+    p = with_tail_bias(p0(), bias)
     for (_, dof, kind, _, _), v in zip(KNOBS, x, strict=True):
         if kind == "timewarp":
             p[-1] = v
@@ -77,14 +79,18 @@ def wingbeat(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, ref) -> np.ndarray:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    if args.cruise:
+        args.table, args.induced = CRUISE.table, True
+    bias = CRUISE.tail_bias_deg if args.cruise else FlightConfig.tail_bias_deg
+    ref = reference_wingbeat("cruise" if args.cruise else "slow")
     dove = Dove.load(induced=args.induced)
-    fl = DoveFlight(dove, table=args.table, use_rollout=False)
+    fl = DoveFlight(dove, ref, table=args.table, use_rollout=False)
     lo, hi = dof_ranges(dove.params)
     evals = [0]
 
     def cost(x: np.ndarray) -> float:
         evals[0] += 1
-        b = wingbeat_balance(fl, wingbeat(x, lo, hi, fl.ref), args.wingbeats, args.skip, args.speed)
+        b = wingbeat_balance(fl, wingbeat(x, lo, hi, fl.ref, bias), args.wingbeats, args.skip, args.speed)
         if b is None:
             return 1e3
         return b["power_W"] + 30.0 * abs(b["climb_m_s"]) + 6.0 * abs(b["accel_m_s2"])
@@ -92,14 +98,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     res = differential_evolution(cost, [(k[3], k[4]) for k in KNOBS], maxiter=args.maxiter,
                                  popsize=args.popsize, seed=args.seed, polish=False, tol=1e-4)
-    best = wingbeat(res.x, lo, hi, fl.ref)
+    best = wingbeat(res.x, lo, hi, fl.ref, bias)
     bal = wingbeat_balance(fl, best, args.wingbeats, args.skip, args.speed)
     fl.close()
     budget = power_budget(args.wingbeats, args.skip, table=args.table, p=best, speed=args.speed,
-                          induced=args.induced)
+                          induced=args.induced, ref=ref)
     bins = budget["drag_feathers_by_aoa_W"]
     steep = (bins["30-45"] + bins["45-60"]) / max(budget["drag_feathers_W"], 1e-12)
-    out = {"table": args.table, "induced": args.induced, "speed_m_s": args.speed,
+    out = {"table": args.table, "induced": args.induced, "cruise": args.cruise,
+           "speed_m_s": args.speed,
            "knobs": {k[0]: float(v) for k, v in zip(KNOBS, res.x, strict=True)},
            "cost": float(res.fun), "evaluations": evals[0],
            "wall_s": time.perf_counter() - t0, "balance": bal, "budget": budget,

@@ -25,7 +25,7 @@ from tqdm import tqdm
 from flapsim import __version__
 from flapsim.bird.body.model import Dove
 from flapsim.bird.control.config import ControllerConfig
-from flapsim.bird.control.controller import bundled_database_path
+from flapsim.bird.control.controller import bundled_database_path, database_dove
 from flapsim.bird.control.database import load_database, read_header
 from flapsim.bird.tasks.config import PathControlConfig
 from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
@@ -116,7 +116,7 @@ def lookahead_runs(runs: list[Run], workers: int | None, backend: str = "local")
 def check_database(db: str, feathers: str) -> None:
     """A database of another dove is a one-line error before any worker starts (each run
     would fail alike)."""
-    have, want = read_header(db).get("model_hash"), Dove.load(feathers=feathers).hash()
+    have, want = read_header(db).get("model_hash"), database_dove(db, feathers).hash()
     if have != want:
         other = "modal" if feathers == "rigid" else "rigid"
         hint = (f"fly it with --feathers {other}" if have == Dove.load(feathers=other).hash()

@@ -25,10 +25,9 @@ from flapsim.core.io import atomic_path
 
 
 def write(out: str | Path, params: DoveParams | None = None) -> Path:
-    """Write the dove's MJCF built from ``params`` (default: ``dove.toml``) to ``out``, with
-    the wings' downwash state (the induced flow)."""
+    """Write the dove's MJCF built from ``params`` (default: ``dove.toml``) to ``out``."""
     path = Path(out)
-    xml = build_xml(params if params is not None else DoveParams.load(PARAM_FILE), induced=True)
+    xml = build_xml(params if params is not None else DoveParams.load(PARAM_FILE))
     with atomic_path(path) as tmp:
         tmp.write_text(xml)
     return path

@@ -537,37 +537,26 @@ class Dove:
 
     @classmethod
     def load(cls, path: str | Path | None = None, params: DoveParams | None = None,
-             feathers: str = "rigid", modal: object | None = None,
-             induced: bool | None = None) -> Dove:
+             feathers: str = "rigid", modal: object | None = None, induced: bool = False) -> Dove:
         """The bundled dove (``feathers="rigid"``, from ``bird_mjcf/dove.xml``), or the same
         bird with modal feathers (``feathers="modal"``: generated from the parameters with
         ``modal`` or the default :class:`~flapsim.bird.body.feather_modes.ModalParams`).
-        ``induced``: whether the rigid dove's wings see their own downwash (the default: the
-        bundled model carries that state, :func:`build_xml`); False generates the rigid dove
-        without it. Modal feathers do not see it yet."""
+        ``induced``: the rigid dove generated with its wings' downwash state
+        (:func:`build_xml`)."""
 
         params = params or DoveParams.load()
         if feathers == "modal":
             if path is not None:
                 raise ModelError("modal feathers are generated from the parameters, not a file")
-            if induced:
-                raise ModelError("modal feathers do not see the induced flow yet: fly them "
-                                 "without it (drop --induced)")
             return cls.from_params(params, modal or ModalParams())
         if feathers != "rigid":
             raise ModelError(f"feathers must be 'rigid' or 'modal', got {feathers!r}")
-        if induced is False:
+        if induced:
             if path is not None:
-                raise ModelError("the dove without the downwash state is generated from the "
-                                 "parameters, not a file")
-            return cls.from_params(params, induced=False)
+                raise ModelError("the induced-flow dove is generated from the parameters, not a file")
+            return cls.from_params(params, induced=True)
         model = load_model(path or model_path())
-        dove = cls.from_model(model, params)
-        if induced and not dove.induced:
-            raise ModelError(f"{path or model_path()} has no downwash state (the induced flow): "
-                             "regenerate it "
-                             "with python -m flapsim.bird.body.build, or fly without it")
-        return dove
+        return cls.from_model(model, params)
 
     @classmethod
     def from_params(cls, params: DoveParams, modal: object | None = None,

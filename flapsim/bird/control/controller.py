@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
+from flapsim.bird.body.model import Dove
 from flapsim.bird.control.config import LOOKAHEAD_MODES, MAX_REFINE, REFINE_GOALS, ControllerConfig
 from flapsim.bird.control.database import load_database, read_header
 from flapsim.bird.control.lookahead import ReferenceLookahead
@@ -392,14 +393,20 @@ BUNDLED_MODAL_DB = "dove_controller_modal.db"
 (phase 1, 10,000 samples, pre-states within 10 deg, seed 2, float32)."""
 
 
+BUNDLED_CRUISE_DB = "dove_controller_cruise.db"
+"""The cruise dove's database (bird-wing section, induced flow, the cruise capture):
+``flapsim train --cruise --samples 10000 --pre-pitch-deg 10 --pre-roll-deg 10 --seed 2
+--float32``; flown with ``--db`` and this file's path (``bundled_database_path("cruise")``)."""
+
+
 def bundled_database_path(feathers: str = "rigid"):
     """The bundled controller database of the rigid (default) or the modal-feather dove
     (``Dove.load(feathers="modal")`` with the default :class:`~flapsim.bird.body.feather_modes.
-    ModalParams`)."""
+    ModalParams`), or ``"cruise"``: the cruise dove's (rigid feathers)."""
 
-    names = {"rigid": BUNDLED_DB, "modal": BUNDLED_MODAL_DB}
+    names = {"rigid": BUNDLED_DB, "modal": BUNDLED_MODAL_DB, "cruise": BUNDLED_CRUISE_DB}
     if feathers not in names:
-        raise InputError(f"feathers must be 'rigid' or 'modal', got {feathers!r}")
+        raise InputError(f"feathers must be 'rigid' or 'modal' (or 'cruise'), got {feathers!r}")
     return Path(__file__).resolve().parent / "data" / names[feathers]
 
 
@@ -420,6 +427,14 @@ def database_speed(db_path=None, feathers: str = "rigid") -> float:
 
     cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
     return float(cfg.get("cruise_speed") or FlightConfig.speed)
+
+
+def database_dove(db_path=None, feathers: str = "rigid") -> Dove:
+    """The dove a controller database (default: the bundled one of ``feathers``) was sampled
+    with: with its wings' induced flow where its sampling configuration says so."""
+
+    cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
+    return Dove.load(feathers=feathers, induced=bool(cfg.get("induced", False)))
 
 
 def database_reference(header: dict) -> ReferenceWingbeat | None:

@@ -1,7 +1,6 @@
 """The feather calibration scene (the flight paper, sec. 7 and Fig. 3/12): the modal dove's
-trunk fixed in a headwind, the wings on the paper's slow-flight wingbeat (the slow capture's
-reference with its +17 deg tail bias, the robofly table it was flown with); tip deflection and
-twist of a primary, a secondary and a rectrix over one wingbeat. What the paper shows: the feathers bend
+trunk fixed in a headwind, the wings on the reference wingbeat; tip deflection and twist of a
+primary, a secondary and a rectrix over one wingbeat. What the paper shows: the feathers bend
 at the downstroke and the primaries twist open at the upstroke.
 ``studies/dove_feather_calibration.py`` plots it and adds the fixed-trunk lift/weight.
 """
@@ -15,14 +14,10 @@ from flapsim.bird.body.feather_modes import ModalParams
 from flapsim.bird.body.model import Dove, build_xml
 from flapsim.bird.body.params import DOF_NAMES, DoveParams
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
-from flapsim.bird.flight.synthetic_capture import slow_reference
-from flapsim.bird.flight.wingbeat import control_table, p0, with_tail_bias
+from flapsim.bird.flight.wingbeat import control_table, p0, reference_wingbeat, with_tail_bias
 from flapsim.core.loading import load_model
 
 FEATHERS = ("l_p8", "l_p3", "l_s5", "l_r3")
-#: The paper's scene: its tail bias, deg, and the coefficient table of its quasi-steady forces
-PAPER_TAIL_BIAS_DEG = 17.0
-PAPER_TABLE = "dickinson1999_profile"
 
 
 def record(speed: float, pitch_deg: float, cycles: int = 3, integration: str = "engine") -> dict:
@@ -30,11 +25,10 @@ def record(speed: float, pitch_deg: float, cycles: int = 3, integration: str = "
     mp = ModalParams(integration=integration)
     model = load_model(build_xml(params, fixed_trunk_pitch_deg=pitch_deg, modal=mp), is_xml=True)
     dove = Dove.from_model(model, params, mp)
-    P = with_tail_bias(p0(), PAPER_TAIL_BIAS_DEG)
-    fl = DoveFlight(dove, slow_reference(), PAPER_TABLE, wind=(-speed, 0.0, 0.0),
-                    use_rollout=False)
+    P = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
+    fl = DoveFlight(dove, reference_wingbeat(), wind=(-speed, 0.0, 0.0), use_rollout=False)
     try:
-        fl.reset(FlightConfig(speed=0.0, tail_bias_deg=PAPER_TAIL_BIAS_DEG), P)
+        fl.reset(FlightConfig(speed=0.0), P)
         m, d = fl.model, fl.data
         ctrl, _, _ = control_table(fl.ref, P, m.opt.timestep, fl.kp, fl.kv)
         idx = [fl.modal.feather_index(n) for n in FEATHERS]

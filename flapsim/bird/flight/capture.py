@@ -45,6 +45,9 @@ log = logging.getLogger(__name__)
 
 SCHEMA = "flapsim.capture/1"
 DATA_FILE = Path(__file__).resolve().parent / "data" / "dove_capture_synthetic.npz"
+#: The bundled synthetic captures by preset (``flapsim.bird.flight.synthetic_capture``): the
+#: paper's slow-flight conditions (the default) and the cruise around the trimmed wingbeat
+CAPTURE_FILES = {"slow": DATA_FILE, "cruise": DATA_FILE.with_name("dove_capture_cruise.npz")}
 
 SOURCES = (
     "Ju, Won, Lee, Noh, Kim, Lee: Data-driven control of flapping flight, ACM TOG 32(5) 2013 "
@@ -154,9 +157,12 @@ class CaptureSet:
 # -- loading -------------------------------------------------------------------------------
 
 
-def reference_capture(with_mirror: bool = False) -> CaptureSet:
-    """The bundled synthetic capture (~150 cycles; ~300 with ``with_mirror``)."""
-    cap = load_capture(DATA_FILE)
+def reference_capture(with_mirror: bool = False, preset: str = "slow") -> CaptureSet:
+    """A bundled synthetic capture (~150 cycles; ~300 with ``with_mirror``): the paper's
+    slow-flight conditions, or ``preset="cruise"``."""
+    if preset not in CAPTURE_FILES:
+        raise InputError(f"unknown capture {preset!r}; choose one of {', '.join(CAPTURE_FILES)}")
+    cap = load_capture(CAPTURE_FILES[preset])
     return cap.with_mirror() if with_mirror else cap
 
 

@@ -58,22 +58,28 @@ AIR_DENSITY = 1.225  # kg/m^3, the flight paper (sec. 6)
 class FlightConfig:
     """Settings of the base controller and its standard cruise start."""
 
-    table: str = "bird_wing"
-    """Feather CL/CD table: a bird wing's section, attached lift to the stall at 17 deg with a
-    bird wing's profile drag, blended into the revolving dove wing's plateau past it
-    (:func:`~flapsim.fluid.coefficients.bird_wing`; the robofly fits stay selectable)."""
-    tail_bias_deg: float = 22.45
-    """Tail bend added to the reference wingbeat, deg (+: tail up): the paper's way to trim its
-    capture's average wingbeat for level flight (sec. 7: +17 deg); this value trims the bundled
-    cruise capture's (``studies/dove_cruise_kinematics.py --trim-capture``)."""
-    speed: float = 8.5
-    """Initial forward speed, m/s (the cruise capture's speed; the paper's bird flew ~7 m/s)."""
+    table: str = "dickinson1999_profile"
+    """Feather CL/CD table: Dickinson et al. 1999 quasi-steady flapping-wing fit with its
+    viscous (low-angle) drag scaled to a bird wing's profile drag CD0 = 0.05 (Withers 1981:
+    0.03-0.13) and the fit unchanged at high angle of attack
+    (:func:`~flapsim.fluid.coefficients.dickinson1999_profile`)."""
+    tail_bias_deg: float = 17.0
+    """Tail bend added to the reference wingbeat (paper sec. 7: +17 deg, tail up)."""
+    speed: float = 7.0
+    """Initial forward speed, m/s (the paper's biased bird flew ~7 m/s)."""
     pitch_deg: float = 0.0
     """Initial trunk pitch, deg (nose up +)."""
     climb_rate: float = 0.0
     """Initial vertical velocity, m/s."""
     height: float = 10.0
     """Initial trunk height, m."""
+
+
+#: The cruise dove (``--cruise``): a bird wing's section, its induced flow
+#: (``Dove.load(induced=True)``) and the cruise capture's reference wingbeat
+#: (``reference_wingbeat("cruise")``), trimmed by a +26 deg tail bias at an 8.5 m/s start
+#: (``studies/dove_cruise_kinematics.py --trim-capture``).
+CRUISE = FlightConfig(table="bird_wing", tail_bias_deg=26.0, speed=8.5)
 
 
 def feather_polygons(dove: Dove) -> PolygonSet:

@@ -29,7 +29,14 @@ import numpy as np
 from flapsim.bird.body.model import Dove
 from flapsim.bird.flight.cycle import heading_and_climb
 from flapsim.bird.flight.dove_flight import BODY_TABLE, DoveFlight, FlightConfig
-from flapsim.bird.flight.wingbeat import control_table, p0, with_tail_bias, with_twist_bias
+from flapsim.bird.flight.wingbeat import (
+    ReferenceWingbeat,
+    control_table,
+    p0,
+    reference_wingbeat,
+    with_tail_bias,
+    with_twist_bias,
+)
 from flapsim.core.errors import InputError
 
 AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
@@ -38,7 +45,8 @@ AOA_BINS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 180.0)
 def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
                  tail_bias_deg: float | None = None, twist_bias_deg: float = 0.0,
                  p: np.ndarray | None = None, speed: float | None = None,
-                 config: FlightConfig | None = None, induced: bool | None = None) -> dict:
+                 config: FlightConfig | None = None, induced: bool = False,
+                 ref: ReferenceWingbeat | None = None) -> dict:
     """Each term of the energy balance, W, averaged over wingbeats ``skip`` .. ``wingbeats``
     of the base flight (``table``: the feathers' coefficient table; ``tail_bias_deg``: the
     tail bend added to P0; ``twist_bias_deg``: both shoulder twists added, + pronates), with
@@ -46,9 +54,10 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
     force over the weight and the mean forward speed (see the module). ``p``: fly this
     wingbeat instead (the biases are then not applied); ``speed``: the start's forward speed,
     m/s (default the cruise start's 7); ``config``: the start and the table (pitch, speed,
-    tail bias) as ``flapsim fly`` sets them, instead of the defaults; ``induced``: whether the
-    dove's wings see their own downwash (:meth:`Dove.load`: by default they do), whose downwash
-    DOF are left out of every work term (they are the air's, not the bird's)."""
+    tail bias) as ``flapsim fly`` sets them, instead of the defaults; ``induced``: the dove
+    whose wings see their own downwash (:meth:`Dove.load`), whose downwash DOF are left out of
+    every work term (they are the air's, not the bird's); ``ref``: the reference wingbeat P0 is
+    relative to (default: the bundled capture's)."""
     if not 0 <= skip < wingbeats:
         raise InputError(f"need 0 <= skip < wingbeats, got skip {skip}, wingbeats {wingbeats}")
     cfg = config or FlightConfig()
@@ -62,7 +71,7 @@ def power_budget(wingbeats: int = 6, skip: int = 2, table: str | None = None,
     elif np.shape(p) != np.shape(p0()) or not np.all(np.isfinite(p)):
         raise InputError(f"a wingbeat is {np.size(p0())} finite parameters, got shape {np.shape(p)}")
     dove = Dove.load(induced=induced)
-    fl = DoveFlight(dove, table=cfg.table, use_rollout=False)
+    fl = DoveFlight(dove, ref or reference_wingbeat(), cfg.table, use_rollout=False)
     m, d = fl.model, fl.data
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     flap = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "l_shoulder_flap")]

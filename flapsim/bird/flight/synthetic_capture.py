@@ -19,13 +19,12 @@ Regenerate the data file with ``python -m flapsim.bird.flight.synthetic_capture 
 from __future__ import annotations
 
 import argparse
-import functools
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from flapsim.bird.body.params import DOF_NAMES, N_DOF
-from flapsim.bird.flight.capture import DATA_FILE, SOURCES, CaptureSet, segment_cycles
+from flapsim.bird.flight.capture import CAPTURE_FILES, SOURCES, CaptureSet, segment_cycles
 from flapsim.bird.flight.wingbeat import ReferenceWingbeat
 from flapsim.core.errors import InputError
 
@@ -120,7 +119,8 @@ class Variation:
     """Per-frame measurement noise, deg."""
 
 
-#: The paper's capture conditions: slow indoor flight at 2-5 m/s (the dataclasses' defaults).
+#: The paper's capture conditions: slow indoor flight at 2-5 m/s (the dataclasses' defaults;
+#: the bundled capture).
 SLOW = (Kinematics(), Variation())
 
 #: Cruise: the kinematic model at 8.5 m/s searched by ``studies/dove_cruise_kinematics.py`` for
@@ -140,8 +140,9 @@ CRUISE = (
               tail_spread_per_speed=-2.0),
 )
 
-PRESETS = {"cruise": CRUISE, "slow": SLOW}
-"""The generator's kinematics and variation by name; the bundled capture is ``cruise``."""
+PRESETS = {"slow": SLOW, "cruise": CRUISE}
+"""The generator's kinematics and variation by name, each written to its bundled file
+(:data:`flapsim.bird.flight.capture.CAPTURE_FILES`)."""
 
 
 def warp(phase: np.ndarray, down: float) -> np.ndarray:
@@ -189,13 +190,6 @@ def cycle_angles(phase: np.ndarray, k: Kinematics, steer: float = 0.0, climb: fl
         mean = out.mean(axis=0)
         out = mean + (out - mean) * (1 + noise[:, 0]) + noise[:, 1]
     return np.radians(out)
-
-
-@functools.cache
-def slow_reference() -> ReferenceWingbeat:
-    """The reference wingbeat of the paper's slow-flight capture conditions (:data:`SLOW`, the
-    seed 2013 draw with its mirror): what the paper's figures of the feathers were made with."""
-    return ReferenceWingbeat.from_capture(synthesize(2013, kin=SLOW[0], var=SLOW[1]).with_mirror())
 
 
 def kinematic_reference(kin: Kinematics, n_phase: int = 96) -> ReferenceWingbeat:
@@ -288,13 +282,15 @@ def synthesize(seed: int = 2013, takes: int = 10, cycles_per_take: int = 15, rat
                       True, source)
 
 
-def write_reference(path=DATA_FILE, seed: int = 2013, preset: str = "cruise") -> CaptureSet:
-    """Write the synthetic capture of ``preset`` (:data:`PRESETS`) drawn with ``seed``."""
+def write_reference(path=None, seed: int = 2013, preset: str = "slow") -> CaptureSet:
+    """Write the synthetic capture of ``preset`` (:data:`PRESETS`) drawn with ``seed`` (default
+    path: the preset's bundled file)."""
     if preset not in PRESETS:
         raise InputError(f"unknown capture preset {preset!r}; choose one of {', '.join(PRESETS)}")
     k, v = PRESETS[preset]
     cap = synthesize(seed, kin=k, var=v)
-    cap.save(path, generator=np.array("flapsim.bird.flight.synthetic_capture.synthesize"),
+    cap.save(CAPTURE_FILES[preset] if path is None else path,
+             generator=np.array("flapsim.bird.flight.synthetic_capture.synthesize"),
              seed=np.array(seed), preset=np.array(preset), kinematics=np.array(repr(asdict(k))),
              variation=np.array(repr(asdict(v))))
     return cap
@@ -303,11 +299,13 @@ def write_reference(path=DATA_FILE, seed: int = 2013, preset: str = "cruise") ->
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description="Regenerate the bundled synthetic dove capture.")
     ap.add_argument("--seed", type=int, default=2013, help="the draw (default 2013, the bundled one's)")
-    ap.add_argument("--out", default=str(DATA_FILE), help="output .npz (default: the bundled file)")
-    ap.add_argument("--preset", choices=tuple(PRESETS), default="cruise",
-                    help="cruise (5-11 m/s, the bundled file's) or slow (the paper's capture, 2-5 m/s)")
+    ap.add_argument("--out", default=None, help="output .npz (default: the preset's bundled file)")
+    ap.add_argument("--preset", choices=tuple(PRESETS), default="slow",
+                    help="slow (the paper's capture conditions, 2-5 m/s: the default capture) or "
+                         "cruise (5-12 m/s around the cruise wingbeat)")
     args = ap.parse_args(argv)
     cap = write_reference(args.out, args.seed, args.preset)
+    args.out = args.out or str(CAPTURE_FILES[args.preset])
     f = 1.0 / cap.durations
     amp = np.degrees(np.ptp(cap.cycle_matrix()[:, :, 0], axis=1))
     print(f"wrote {args.out}: {cap.n_cycles} cycles, {len(cap.angles)} frames at {cap.rate_hz} Hz")

@@ -183,15 +183,16 @@ class ReferenceWingbeat:
         return join(s, t, duration / self.period)
 
 
-_REFERENCE: ReferenceWingbeat | None = None
+_REFERENCE: dict[str, ReferenceWingbeat] = {}
 
 
-def reference_wingbeat() -> ReferenceWingbeat:
-    """The reference wingbeat of the bundled capture set (with its mirror: symmetric)."""
-    global _REFERENCE
-    if _REFERENCE is None:
-        _REFERENCE = ReferenceWingbeat.from_capture(reference_capture(with_mirror=True))
-    return _REFERENCE
+def reference_wingbeat(preset: str = "slow") -> ReferenceWingbeat:
+    """The reference wingbeat of a bundled capture set (with its mirror: symmetric): the
+    paper's slow-flight conditions, or ``preset="cruise"``."""
+    if preset not in _REFERENCE:
+        cap = reference_capture(with_mirror=True, preset=preset)
+        _REFERENCE[preset] = ReferenceWingbeat.from_capture(cap)
+    return _REFERENCE[preset]
 
 
 def control_table(ref: ReferenceWingbeat, p: np.ndarray, dt: float, kp: np.ndarray,

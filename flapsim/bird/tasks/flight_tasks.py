@@ -25,8 +25,7 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from flapsim.bird.body.model import Dove
-from flapsim.bird.control.controller import database_table, load_controller
+from flapsim.bird.control.controller import database_dove, database_table, load_controller
 from flapsim.bird.control.targets import trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
@@ -170,8 +169,8 @@ class Task:
     """What to fly and under what."""
 
     path: FlightPath
-    speed: float = FlightConfig.speed
-    """Flight speed asked, m/s (the cruise start's: the database was sampled around it)."""
+    speed: float = 7.0
+    """Flight speed asked, m/s."""
     pushes: tuple[PushSpec, ...] = ()
     plucked: tuple[str, ...] = ()
     wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -304,7 +303,7 @@ def build_flight(task: Task, db=None, method: str = "lwlr", k: int | None = None
     :func:`~flapsim.bird.control.controller.load_controller`'s others, such as ``clip_request``,
     ``state_weight`` or ``predict``)."""
 
-    fl = DoveFlight(Dove.load(feathers=task.feathers), table=database_table(db, task.feathers),
+    fl = DoveFlight(database_dove(db, task.feathers), table=database_table(db, task.feathers),
                     wind=tuple(task.wind), flow=tuple(task.flow), plucked=tuple(task.plucked))
     try:
         ctl = load_controller(fl, db, method=method, k=k, mirror=mirror, **options)

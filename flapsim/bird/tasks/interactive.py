@@ -71,7 +71,7 @@ class Command:
 
     turn_rate_deg_s: float = 0.0
     climb_deg: float = 0.0
-    speed: float = FlightConfig.speed
+    speed: float = 7.0
     pushes: int = 0
     gusts: int = 0
     events: list = field(default_factory=list)

@@ -291,7 +291,7 @@ class PathTarget:
 
     trim: Trim
     path: FlightPath
-    speed: float = FlightConfig.speed
+    speed: float = 7.0
     """Flight speed asked, m/s."""
     lookahead_s: float = 1.0
     """Look-ahead time, s (paper: 1 s)."""

@@ -36,7 +36,7 @@ from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import N_DOF
 from flapsim.bird.control.database import ChunkResult, load_database
 from flapsim.bird.flight import cycle
-from flapsim.bird.flight.capture import CaptureSet, load_capture, reference_capture
+from flapsim.bird.flight.capture import CAPTURE_FILES, CaptureSet, load_capture, reference_capture
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, pose_quat
 from flapsim.bird.flight.wingbeat import (
     N_PARAMS,
@@ -242,6 +242,12 @@ class SamplingConfig(StoredConfig):
     capture's ellipses then spread around it, and the samples' dP stay P0-relative, so such
     a database merges with one sampled around P0."""
 
+    capture_preset: str = "slow"
+    """The bundled capture the examples and the reference wingbeat P0 come from: ``slow``
+    (the paper's conditions) or ``cruise`` (:data:`~flapsim.bird.flight.capture.CAPTURE_FILES`)."""
+    induced: bool = False
+    """Whether the dove's wings see their own downwash (rigid feathers only)."""
+
     def __post_init__(self) -> None:
         # JSON gives a list back: a tuple keeps the configuration frozen and comparable
         object.__setattr__(self, "centre_wingbeat", tuple(float(x) for x in self.centre_wingbeat))
@@ -252,6 +258,10 @@ class SamplingConfig(StoredConfig):
             del d["feathers"]  # rigid databases keep the configuration they always had
         if d["twist_bias_deg"] == 0.0:
             del d["twist_bias_deg"]  # likewise
+        if d["capture_preset"] == "slow":
+            del d["capture_preset"]  # likewise
+        if not d["induced"]:
+            del d["induced"]  # likewise
         for k in ("centre_flap_scale", "centre_timewarp"):
             if d[k] == 1.0:
                 del d[k]  # likewise
@@ -264,6 +274,11 @@ class SamplingConfig(StoredConfig):
     def validate(self) -> None:
         if self.feathers not in ("rigid", "modal"):
             raise InputError(f"feathers must be rigid or modal, got {self.feathers!r}")
+        if self.capture_preset not in CAPTURE_FILES:
+            raise InputError(f"unknown capture {self.capture_preset!r}; choose one of "
+                             f"{', '.join(CAPTURE_FILES)}")
+        if self.induced and self.feathers != "rigid":
+            raise InputError("the induced flow needs rigid feathers")
         if not (0 < self.sigma <= 10):
             raise InputError(f"--sigma must be in (0, 10], got {self.sigma}")
         if not (1 <= self.bins <= 10):
@@ -329,7 +344,7 @@ def load_examples(config: SamplingConfig, ref: ReferenceWingbeat) -> WingbeatSet
         if config.capture:
             cap = load_capture(config.capture).with_mirror()
         else:
-            cap = reference_capture(with_mirror=True)
+            cap = reference_capture(with_mirror=True, preset=config.capture_preset)
         return capture_wingbeats(cap, ref)
 
     db = load_database(Path(config.source))
@@ -342,10 +357,10 @@ class SampleWorker:
     def __init__(self, config: SamplingConfig) -> None:
         config.validate()
         self.config = config
-        self.ref = reference_wingbeat()
+        self.ref = reference_wingbeat(config.capture_preset)
         self.examples = load_examples(config, self.ref)
         self.ellipses = Ellipses.fit(self.examples, config.bins)
-        self.dove = Dove.load(feathers=config.feathers)
+        self.dove = Dove.load(feathers=config.feathers, induced=config.induced)
         self.flight = DoveFlight(self.dove, self.ref, config.table)
         self.lo, self.hi = cycle.model_dof_ranges(self.flight)
         self.P0 = with_twist_bias(with_tail_bias(p0(), config.tail_bias_deg), config.twist_bias_deg)

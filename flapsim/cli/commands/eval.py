@@ -53,9 +53,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                   help="fly a path file of yours (CSV with header x,y,z, or JSON list of [x,y,z])")
     add_controller_arguments(p)
     p.add_argument("--speed", type=float, default=None, metavar="M_S",
-                   help="flight: the speed asked of every flight, m/s (default: the cruise "
-                        "speed, 8.5, which the bundled database was sampled around; the paper's "
-                        "bird flew ~7)")
+                   help="flight: the speed asked of every flight, m/s (default 7, the paper's; the "
+                        "bundled database was sampled at 7: slower flight needs a database sampled "
+                        "there, see docs/flight.md)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",

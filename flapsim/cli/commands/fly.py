@@ -11,16 +11,18 @@ from flapsim.bird.body.model import Dove
 from flapsim.bird.control.controller import (
     BaseController,
     cruise_metrics,
+    database_dove,
+    database_speed,
     database_table,
     fly_controlled,
     load_controller,
     start_cruise,
 )
 from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
-from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, flight_metrics, fly
+from flapsim.bird.flight.dove_flight import CRUISE, DoveFlight, FlightConfig, flight_metrics, fly
 from flapsim.bird.flight.power import power_budget
 from flapsim.bird.flight.video import dove_video
-from flapsim.bird.flight.wingbeat import p0, with_tail_bias
+from flapsim.bird.flight.wingbeat import p0, reference_wingbeat, with_tail_bias
 from flapsim.bird.tasks.flight_tasks import Task, fly_task
 from flapsim.bird.tasks.path_control import load_path
 from flapsim.cli.options import add_controller_arguments, controller_options
@@ -51,25 +53,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
                    help="write a chase-camera video (.mp4 or .gif)")
     add_output_arg(p, "--out", kinds=(".npz",), help="write the trajectory (.npz)")
-    p.add_argument("--speed", type=float, default=FlightConfig.speed,
-                   help=f"initial speed, m/s (default {FlightConfig.speed:g}: the cruise capture's)")
+    p.add_argument("--speed", type=float, default=7.0, help="initial speed, m/s (default 7)")
     p.add_argument("--pitch-deg", type=float, default=0.0, help="initial trunk pitch (default 0)")
-    p.add_argument("--tail-bias-deg", type=float, default=FlightConfig.tail_bias_deg,
-                   help=f"tail bend added to the reference wingbeat (default "
-                        f"{FlightConfig.tail_bias_deg:g}, which trims it; the paper's: 17)")
+    p.add_argument("--tail-bias-deg", type=float, default=17.0,
+                   help="tail bend added to the reference wingbeat (paper: 17)")
     p.add_argument("--table", default=None,
-                   help=f"feather coefficient table (default {FlightConfig.table}; a learned "
+                   help="feather coefficient table (default dickinson1999_profile; a learned "
                         "controller's default: the table its database was sampled with)")
     p.add_argument("--python-loop", action="store_true",
                    help="step in a Python loop instead of mujoco.rollout (same result)")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="rigid feather plates (default) or modal feathers that bend and twist "
                         "(4 modes each, the paper's sec. 6: slower)")
-    p.add_argument("--induced", action=argparse.BooleanOptionalAction, default=None,
-                   help="whether the wings see the air their own lift pushes down (momentum "
-                        "theory, flapsim.fluid.induced): the default with rigid feathers, which "
-                        "the bundled wingbeat and database were made with; --no-induced flies "
-                        "without it; modal feathers do not see it yet")
+    p.add_argument("--induced", action="store_true",
+                   help="the wings see the air their own lift pushes down (momentum theory, "
+                        "flapsim.fluid.induced; base controller, rigid feathers; not the default: "
+                        "the bundled wingbeat and databases were made without it)")
+    p.add_argument("--cruise", action="store_true",
+                   help="the cruise dove: a bird wing's section, its induced flow, the cruise "
+                        "capture's reference wingbeat with its tail bias, from 8.5 m/s (base "
+                        "controller; options given beside it win; docs/flight.md)")
     p.add_argument("--power", action="store_true",
                    help="also the base flight's energy balance: the servos' power, where the air "
                         "and the dampers take it (feather drag by stroke and angle of attack), "
@@ -99,6 +102,18 @@ def run(args: argparse.Namespace) -> dict:
     if not np.isfinite(args.roll_deg) or abs(args.roll_deg) > 90:
         raise InputError(f"--roll-deg must be within -90..90, got {args.roll_deg}")
     args.controller_config, args.path_control = controller_options(args)
+    if args.cruise:
+        if args.path or args.controller == "learned" or args.db or args.roll_deg or \
+                args.feathers != "rigid":
+            raise InputError("--cruise flies the base controller with rigid feathers (a learned "
+                             "cruise flight: --db with a database trained with train --cruise)")
+        args.induced = True
+        # the cruise dove's start and tail bias, where the command line left the defaults
+        defaults = FlightConfig()
+        args.speed = CRUISE.speed if args.speed == defaults.speed else args.speed
+        if args.tail_bias_deg == defaults.tail_bias_deg:
+            args.tail_bias_deg = CRUISE.tail_bias_deg
+        args.table = args.table or CRUISE.table
     cfg = FlightConfig(speed=args.speed, pitch_deg=args.pitch_deg, tail_bias_deg=args.tail_bias_deg,
                        **({"table": args.table} if args.table else {}))
     if args.power:  # checked before anything is flown
@@ -111,14 +126,14 @@ def run(args: argparse.Namespace) -> dict:
         if args.feathers != "rigid":
             raise InputError("--power needs rigid feathers (the modal feathers' forces are not "
                              "split by polygon)")
-    if args.induced and args.feathers != "rigid":
-        raise InputError("--induced needs rigid feathers (modal feathers do not see the induced "
-                         "flow yet): drop --induced or --feathers modal")
-    if args.induced is False and (args.path or args.controller == "learned" or args.db
-                                  or args.roll_deg):
-        raise InputError("--no-induced flies the base controller only (the databases were "
-                         "sampled with the induced flow): drop --controller learned, --path, "
-                         "--db and --roll-deg")
+    if args.induced and (args.path or args.controller == "learned" or args.db or args.roll_deg
+                         or args.feathers != "rigid"):
+        raise InputError("--induced flies the base controller with rigid feathers (the "
+                         "databases were sampled without the downwash): drop --controller "
+                         "learned, --path, --db, --roll-deg and --feathers modal")
+    if args.db and args.speed == FlightConfig.speed:
+        # a database's flights are asked the speed it was sampled around unless told otherwise
+        cfg = dataclasses.replace(cfg, speed=database_speed(args.db, args.feathers))
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")
@@ -126,13 +141,15 @@ def run(args: argparse.Namespace) -> dict:
     if args.controller == "learned" or args.db or args.roll_deg:
         return _run_controlled(args, cfg, width, height)
     dove = Dove.load(feathers=args.feathers, induced=args.induced)
+    ref = reference_wingbeat("cruise" if args.cruise else "slow")
     flight = fly(dove, args.wingbeats, cfg, use_rollout=not args.python_loop, progress=True,
-                 keep_qpos=bool(args.video))
+                 keep_qpos=bool(args.video), ref=ref)
     metrics = flight_metrics(flight)
     result = {
         "wingbeats": args.wingbeats,
         "feathers": args.feathers,
-        "induced": dove.induced,
+        "induced": bool(args.induced),
+        "capture": "cruise" if args.cruise else "slow",
         "model_hash": dove.hash(),
         "mass": dove.mass,
         "config": {"speed": cfg.speed, "pitch_deg": cfg.pitch_deg,
@@ -151,7 +168,7 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  pitch {pr[0]:.1f}..{pr[1]:.1f} deg, roll {rr[0]:.1f}..{rr[1]:.1f} deg")
     if args.power:
         skip = min(2, args.wingbeats - 1)  # the start's transient out, where there is more
-        pw = power_budget(args.wingbeats, skip, config=cfg, induced=args.induced)
+        pw = power_budget(args.wingbeats, skip, config=cfg, induced=args.induced, ref=ref)
         down = pw["drag_feathers_downstroke_W"] / pw["drag_feathers_W"]
         bins = pw["drag_feathers_by_aoa_W"]
         steep = (bins["30-45"] + bins["45-60"]) / pw["drag_feathers_W"]
@@ -178,7 +195,8 @@ def run(args: argparse.Namespace) -> dict:
 def _run_controlled(args: argparse.Namespace, cfg, width: int, height: int) -> dict:
     """Cruise under the learned controller (or the base one, from a rolled start)."""
 
-    dove = Dove.load(feathers=args.feathers)
+    dove = database_dove(args.db, args.feathers) if args.controller == "learned" else \
+        Dove.load(feathers=args.feathers)
     if args.controller == "learned" and not args.table:
         cfg = dataclasses.replace(cfg, table=database_table(args.db, args.feathers))
     fl = DoveFlight(dove, table=cfg.table)

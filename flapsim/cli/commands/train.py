@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from flapsim.bird.control.database import merge_databases, read_header
+from flapsim.bird.flight.dove_flight import CRUISE
 from flapsim.bird.training.discovery import DiscoveryConfig, DiscoveryWorker
 from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
 from flapsim.bird.training.train import train
@@ -66,8 +67,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: pre-state angular velocity within +-this per body axis, deg/s "
                         "(default 4, the paper's)")
     p.add_argument("--pre-speed", type=float, default=None, metavar="M_S",
-                   help="phase 1: the cruise speed pre-states are drawn around, m/s (default: "
-                        "the cruise start's, 8.5)")
+                   help="phase 1: the cruise speed pre-states are drawn around, m/s (default 7, "
+                        "the paper's)")
     p.add_argument("--centre-flap-scale", type=float, default=None, metavar="S",
                    help="phase 1: draw the wingbeats around P0 with both shoulder-flap strokes "
                         "scaled by S (default 1: around P0)")
@@ -91,6 +92,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: the feather coefficient table the samples are flown with (default "
                         "dickinson1999_profile; dove_revolving: fitted to revolving dove wings, see "
                         "docs/flight.md); the database's controller flies with it")
+    p.add_argument("--cruise", action="store_true",
+                   help="phase 1: the cruise dove (a bird wing's section, its induced flow, the "
+                        "cruise capture, its tail bias and 8.5 m/s; docs/flight.md); options given "
+                        "beside it win")
     p.add_argument("--tail-bias-deg", type=float, default=None,
                    help="phase 1: tail bend added to the reference wingbeat, deg (default 17, the "
                         "paper's)")
@@ -171,9 +176,10 @@ def validate(args: argparse.Namespace) -> None:
     if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
         raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
     if args.phase == 2 and (getattr(args, "table", None) or getattr(args, "tail_bias_deg", None) is not None
-                            or getattr(args, "twist_bias_deg", None) is not None):
-        raise InputError("--table, --tail-bias-deg and --twist-bias-deg are for phase 1; phase 2 keeps "
-                         "its --from database's")
+                            or getattr(args, "twist_bias_deg", None) is not None
+                            or getattr(args, "cruise", False)):
+        raise InputError("--table, --tail-bias-deg, --twist-bias-deg and --cruise are for phase 1; "
+                         "phase 2 keeps its --from database's")
     if args.phase == 2:
         if args.from_db is None:
             raise InputError("--phase 2 needs --from DB (a phase-1 database)")
@@ -207,6 +213,12 @@ def read_centre_wingbeat(path: str) -> tuple[float, ...]:
 def phase1(args: argparse.Namespace) -> tuple[Any, type]:
     """The phase-1 sampler: (config, worker class)."""
     kwargs: dict[str, Any] = {"seed": args.seed}
+    if getattr(args, "cruise", False):
+        if getattr(args, "feathers", "rigid") != "rigid":
+            raise InputError("--cruise needs rigid feathers (modal ones do not see the induced "
+                             "flow yet): drop --feathers modal")
+        kwargs.update(table=CRUISE.table, tail_bias_deg=CRUISE.tail_bias_deg,
+                      cruise_speed=CRUISE.speed, capture_preset="cruise", induced=True)
     if args.sigma is not None:
         kwargs["sigma"] = args.sigma
     if getattr(args, "pre_pitch_deg", None) is not None:

@@ -10,9 +10,10 @@ records when each member was written.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from flapsim.bird.body import build
-from flapsim.bird.flight.capture import DATA_FILE
+from flapsim.bird.flight.capture import CAPTURE_FILES
 from flapsim.bird.flight.synthetic_capture import write_reference
 from flapsim.core.assets import asset_dir
 
@@ -22,10 +23,11 @@ def test_the_generator_rewrites_the_bundled_dove_unchanged(tmp_path):
     assert path.read_bytes() == (asset_dir("bird_mjcf") / "dove.xml").read_bytes()
 
 
-def test_the_synthetic_capture_generator_rewrites_the_bundled_capture_unchanged(tmp_path):
-    write_reference(tmp_path / "capture.npz", seed=2013)
+@pytest.mark.parametrize("preset", ["slow", "cruise"])
+def test_the_synthetic_capture_generator_rewrites_the_bundled_captures_unchanged(tmp_path, preset):
+    write_reference(tmp_path / "capture.npz", seed=2013, preset=preset)
     with np.load(tmp_path / "capture.npz", allow_pickle=False) as new, \
-            np.load(DATA_FILE, allow_pickle=False) as bundled:
+            np.load(CAPTURE_FILES[preset], allow_pickle=False) as bundled:
         assert sorted(new.files) == sorted(bundled.files)
         for key in bundled.files:
             assert new[key].dtype == bundled[key].dtype, key

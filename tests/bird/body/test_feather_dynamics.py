@@ -12,10 +12,9 @@ from flapsim.bird.body.inertia import _Inertia
 from flapsim.bird.body.model import Dove, _inertial_xml
 from flapsim.bird.body.params import DoveParams
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, flight_metrics, fly
-from flapsim.bird.flight.synthetic_capture import slow_reference
 from flapsim.fluid.coefficients import get_table
 
-RIGID_HASH = "69b1275e622d"  # the bundled controller database is bound to it
+RIGID_HASH = "78496ea82ee6"  # the bundled controller database is bound to it
 TREE_HASH = "ff4b126f5b0b"  # the same dove with the twist hinges in the skeleton (before 2026-11-29)
 FOUR = ModalParams(modes=4)  # the paper's reduction: the dove flies 1 mode (see ModalParams.modes)
 MECHANISMS = ("engine", "joints")  # who integrates the modes (ModalParams.integration)
@@ -394,13 +393,8 @@ def test_modal_state_is_in_the_snapshot(modal_dove):
         fl.close()
 
 
-#: The paper's scene (its slow capture's wingbeat, tail bias and robofly forces at 7 m/s): the
-#: modal feathers' checks fly what the paper's feathers were shown with
-PAPER = FlightConfig(table="dickinson1999_profile", tail_bias_deg=17.0, speed=7.0)
-
-
 def test_modal_base_controller_flies_ten_wingbeats_along_the_line(modal_dove):
-    f = fly(modal_dove, 10, PAPER, ref=slow_reference())
+    f = fly(modal_dove, 10)
     met = flight_metrics(f)
     assert met["finite"]
     assert met["max_vertical_deviation"] < 0.3 and met["max_lateral_deviation"] < 0.3
@@ -417,9 +411,9 @@ def test_engine_modes_follow_the_coupled_joints_in_flight(modal_dove):
     the bone differ: measured 2-4 %)."""
     out = []
     for dove in (modal_dove, Dove.load(feathers="modal", modal=ModalParams(integration="joints"))):
-        fl = DoveFlight(dove, slow_reference(), PAPER.table, use_rollout=False)
+        fl = DoveFlight(dove, use_rollout=False)
         try:
-            cfg = PAPER
+            cfg = FlightConfig()
             from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 
             p = with_tail_bias(p0(), cfg.tail_bias_deg)

@@ -8,7 +8,7 @@ import pytest
 
 from flapsim.bird.body.model import Dove, build_xml, can_touch_anything, model_path
 from flapsim.bird.body.params import DOF_NAMES, DoveParams
-from flapsim.bird.flight.dove_flight import FlightConfig, fly
+from flapsim.bird.flight.dove_flight import fly
 from flapsim.core.errors import DataFileError
 
 
@@ -19,7 +19,7 @@ def dove():
 
 def test_bundled_xml_is_generated_from_the_parameter_file():
     # exact text equality: editing dove.toml without regenerating must fail here
-    assert model_path().read_text() == build_xml(DoveParams.load(), induced=True)
+    assert model_path().read_text() == build_xml(DoveParams.load())
 
 
 def test_mass_and_dof(dove):
@@ -79,6 +79,22 @@ def test_bad_parameter_file_is_one_line(tmp_path):
         DoveParams.load(bad)
 
 
+def test_the_cruise_captures_cycles_sit_inside_the_ranges_with_margin(dove):
+    from flapsim.bird.body.params import dof_ranges
+    from flapsim.bird.flight.capture import reference_capture
+    from flapsim.bird.flight.dove_flight import CRUISE
+
+    lo, hi = dof_ranges(dove.params)
+    cap = reference_capture(with_mirror=True, preset="cruise").angles
+    biased = cap.copy()
+    biased[:, DOF_NAMES.index("tail_bend")] += np.radians(CRUISE.tail_bias_deg)
+    # the contract the slow capture keeps (below): 10 deg inside every range, tail as flown
+    margin = np.radians(10.0)
+    for poses in (cap, biased):
+        assert (poses.min(axis=0) >= lo + margin).all()
+        assert (poses.max(axis=0) <= hi - margin).all()
+
+
 def test_ranges_contain_the_reference_and_every_capture_cycle_with_margin(dove):
     from flapsim.bird.body.params import dof_ranges
     from flapsim.bird.flight.capture import reference_capture
@@ -87,12 +103,12 @@ def test_ranges_contain_the_reference_and_every_capture_cycle_with_margin(dove):
     lo, hi = dof_ranges(dove.params)
     assert lo.shape == hi.shape == (14,) and (lo < hi).all()
     ref = reference_wingbeat()
-    p = with_tail_bias(p0(), FlightConfig.tail_bias_deg)  # the flown base wingbeat
+    p = with_tail_bias(p0(), 17.0)  # the flown base wingbeat (paper's +17 deg tail bias)
     q, _ = ref.evaluate(p, np.linspace(0.0, ref.duration(p), 400, endpoint=False))
     cap = reference_capture(with_mirror=True).angles  # every frame of every cycle, both hands
     tail = DOF_NAMES.index("tail_bend")
     biased = cap.copy()
-    biased[:, tail] += np.radians(FlightConfig.tail_bias_deg)  # cycles as flown, tail biased
+    biased[:, tail] += np.radians(17.0)  # capture cycles as flown with the tail bias
     # a controller samples around these poses: every one must sit 10 deg inside the ranges
     # (the parameter file's ranges were placed with >= 13 deg to spare; 10 deg is the contract)
     margin = np.radians(10.0)

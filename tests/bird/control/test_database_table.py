@@ -1,5 +1,5 @@
-"""A controller database flies with the feather table and the reference wingbeat it was
-sampled with."""
+"""A controller database flies with the feather table, the dove and the reference wingbeat
+it was sampled with."""
 
 import numpy as np
 import pytest
@@ -26,36 +26,15 @@ def revolving_db(tmp_path_factory):
 
 
 def test_the_bundled_database_names_its_table():
-    assert database_table() == FlightConfig.table == "bird_wing"
-    # the modal dove's database stays the paper's: robofly forces (its feathers do not see
-    # the induced flow a bird-wing section needs beside it)
-    assert database_table(feathers="modal") == "dickinson1999_profile"
-
-
-def test_a_database_flies_around_the_reference_it_was_sampled_around():
-    from flapsim.bird.flight.synthetic_capture import slow_reference
-    from flapsim.bird.flight.wingbeat import reference_wingbeat
-
-    # the modal database was sampled around the paper's slow-flight capture: loading it moves
-    # the flight onto that reference; the slow preset's capture, drawn again here in double
-    # precision, gives the same coefficients to the bundled file's float32 rounding (1e-6 rad)
-    dove = Dove.load(feathers="modal")
-    fl = DoveFlight(dove, table=database_table(feathers="modal"), use_rollout=False)
-    try:
-        assert np.array_equal(fl.ref.coef, reference_wingbeat().coef)
-        load_controller(fl)
-        assert not np.allclose(fl.ref.coef, reference_wingbeat().coef, atol=1e-3)
-        assert np.allclose(fl.ref.coef, slow_reference().coef, atol=1e-5)
-    finally:
-        fl.close()
+    assert database_table() == FlightConfig.table == "dickinson1999_profile"
 
 
 def test_a_flight_with_another_table_is_refused(revolving_db):
     fl = DoveFlight(Dove.load(), table="dove_revolving")
     try:
-        with pytest.raises(InputError, match="sampled with the bird_wing feather table") as e:
+        with pytest.raises(InputError, match="sampled with the dickinson1999_profile feather table") as e:
             load_controller(fl)
-        assert "\n" not in str(e.value) and "--table bird_wing" in str(e.value)
+        assert "\n" not in str(e.value) and "--table dickinson1999_profile" in str(e.value)
         assert load_controller(fl, revolving_db).regressor.n == 600  # 300 and their mirror images
     finally:
         fl.close()
@@ -69,7 +48,7 @@ def test_tasks_fly_with_the_databases_table(revolving_db):
         fl.close()
     fl, _ = build_flight(Task(paths.straight(20.0)))
     try:
-        assert fl.table == "bird_wing"
+        assert fl.table == "dickinson1999_profile"
     finally:
         fl.close()
 
@@ -124,5 +103,28 @@ def test_train_options_reach_the_sampling_configuration(tmp_path):
     cfg, _ = train.phase1(args)
     assert (cfg.table, cfg.tail_bias_deg, cfg.twist_bias_deg) == ("dove_revolving", 25.0, -8.0)
     cfg, _ = train.phase1(p.parse_args(["--samples", "10", "--out", str(tmp_path / "o.db")]))
-    assert (cfg.table, cfg.tail_bias_deg, cfg.twist_bias_deg) == (
-        "bird_wing", FlightConfig.tail_bias_deg, 0.0)
+    assert (cfg.table, cfg.tail_bias_deg, cfg.twist_bias_deg) == ("dickinson1999_profile", 17.0, 0.0)
+
+
+def test_the_cruise_database_flies_its_own_dove_and_reference():
+    from flapsim.bird.control.controller import database_dove, database_speed
+    from flapsim.bird.flight.dove_flight import CRUISE
+    from flapsim.bird.flight.wingbeat import reference_wingbeat
+
+    db = bundled_database_path("cruise")
+    assert database_table(db) == "bird_wing" and database_speed(db) == CRUISE.speed == 8.5
+    dove = database_dove(db)
+    assert dove.induced and not database_dove().induced
+    # the flight starts on the default (slow) reference; loading the database moves it onto
+    # the cruise capture's, which its samples' wingbeats are offsets from (1e-9: the JSON header
+    # and a refit of the same capture agree to the last bits only on the same machine)
+    fl = DoveFlight(dove, table="bird_wing", use_rollout=False)
+    try:
+        assert np.array_equal(fl.ref.coef, reference_wingbeat().coef)
+        ctl = load_controller(fl, db)
+        cruise = reference_wingbeat("cruise")
+        assert np.allclose(fl.ref.coef, cruise.coef, rtol=0, atol=1e-9)
+        assert fl.ref.period == pytest.approx(cruise.period, rel=1e-12)
+        assert ctl.P0[2 * 12 + 1] == pytest.approx(np.radians(CRUISE.tail_bias_deg))
+    finally:
+        fl.close()
