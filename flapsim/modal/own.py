@@ -280,7 +280,9 @@ def travel_root(model: mujoco.MjModel, qpos: np.ndarray, labels: Labels,
                 mujoco.mj_kinematics(model, d)
                 mujoco.mj_comPos(model, d)
                 now = point_world(d, p)
-                err = np.array([touch[i][0] - now[0], touch[i][1] - now[1], 0.0])
+                # keep the height the gait gives (which feet touch the ground stays)
+                err = np.array([touch[i][0] - now[0], touch[i][1] - now[1],
+                                pos[k, i, 2] + lift[k] - now[2]])
                 if np.linalg.norm(err) < 1e-6:
                     break
                 jp = np.zeros((3, model.nv))
