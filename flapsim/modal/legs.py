@@ -57,7 +57,7 @@ FOOT_BAND = 0.25
 KNEE_AXIS_MIN = math.cos(math.radians(45.0))
 #: Legs count as straight when every shank leans less than 5 deg from the vertical
 #: (tan 5 deg): the knee then moves the foot vertically by under 9 % of its fore-aft
-#: motion, and our dog's least bent leg leans 10 deg.
+#: motion; our dog's shanks lean 22 deg (front) and 32 deg (hind).
 STRAIGHT_RATIO = math.tan(math.radians(5.0))
 
 
