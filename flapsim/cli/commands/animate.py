@@ -176,7 +176,8 @@ def run(args: argparse.Namespace) -> dict:
     if own is not None:
         kind = "quadruped" if own.legs.quadruped else "biped"
         if g.kind != kind:
-            names = [n for n, x in GAITS.items() if x.kind == kind]
+            names = [n for n, x in GAITS.items()
+                     if x.kind == kind and not x.constraints and x.model != "human_cart"]
             raise InputError(f"gait {g.name!r} is for a {g.kind}, and {label} is a {kind} "
                              f"({len(own.legs.legs)} feet): use {', '.join(names)}")
     elif spec in MODELS and spec != g.model and not (spec == "human_cart" and g.model == "human"):
