@@ -8,6 +8,7 @@ import argparse
 import dataclasses
 import math
 import os
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -254,6 +255,8 @@ def run(args: argparse.Namespace) -> dict:
         "constraint_residual": anim.constraint_residual,
         "checks": checks,
     }
+    if spec not in MODELS:
+        out["model_file"] = str(Path(spec).resolve())
     if own is not None:
         out["own_creature"] = own.report(model)
     out["modes_used"] = [{k: c[k] for k in ("mode", "categories", "mode_sign", "amplitude",
