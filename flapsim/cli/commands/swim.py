@@ -20,6 +20,7 @@ from flapsim.swim.per_cycle import calibrate, load_table
 from flapsim.swim.plots import track_plot
 from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import load_stroke
+from flapsim.swim.tow import NARITA_K, tow
 
 HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate and floating height"
 SEED_HELP = "accepted for uniformity; swimming is deterministic, --seed changes nothing"
@@ -75,6 +76,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="extra lung volume [L] (default 3, the paper's floater)")
     p.add_argument("--friction", type=quantity("friction"), default=None,
                    help="skin-friction coefficient eta [N s/m^3] (default 2)")
+    p.add_argument("--body", choices=("rounded", "box"), default="rounded",
+                   help="hydrodynamic surface: rounded segments (a human body's drag, "
+                        "default) or the paper's 16 boxes")
     p.add_argument("--buoyancy", choices=("exact", "linear"), default="exact",
                    help="submerged fraction: exact spherical cap or the paper's linear rule")
     p.add_argument("--r-min", type=quantity("flow_ratio"), default=0.0,
@@ -105,6 +109,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="instead of swimming: make the stroke's per-cycle weight tables by "
                         "pre-simulation in still water (parallel, resumable; written next to "
                         "the stroke file, or to --table)")
+    p.add_argument("--tow", metavar="V1,V2,...", default=None,
+                   help="instead of swimming: tow the body in a streamlined glide at these "
+                        "speeds [m/s], at the surface and 0.5 m under it, and report the drag "
+                        "and the fitted D = K v^2 (tow_drag_coefficient; people 23.5, Narita "
+                        "et al. 2017)")
     p.add_argument("--table", metavar="FILE.json", default=None,
                    help="per-cycle calibration table to use (or, with --calibrate, to write); "
                         "default: <stroke>.cycle.json next to the stroke file")
@@ -187,16 +196,43 @@ def calibrate_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
     return {"stroke": args.stroke, "table": str(out), "tables": rows}
 
 
+def tow_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
+    """``flapsim swim --tow V1,V2,...``: passive drag in a streamlined glide
+    (:func:`flapsim.swim.tow.tow`)."""
+    try:
+        speeds = [float(x) for x in str(args.tow).split(",")]
+    except ValueError:
+        raise InputError(f"--tow must be comma-separated speeds in m/s, e.g. 1.0,1.5,2.0; got "
+                         f"{args.tow!r}") from None
+    r = tow(speeds, params)
+    s = r.summary()
+    s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    print(f"towed in a streamlined glide ({params.body_shape} body); people: {NARITA_K} v^2 N "
+          "(Narita et al. 2017)")
+    print(f"{'v [m/s]':>8} {'surface [N]':>12} {f'{r.depth_m:g} m under [N]':>15} {'people [N]':>11}")
+    for v, a, b in zip(r.speeds, r.surface_n, r.submerged_n, strict=True):
+        print(f"{v:8.2f} {a:12.1f} {b:15.1f} {NARITA_K * v * v:11.1f}")
+    print(f"tow_drag_coefficient {r.k_surface:.1f} N s^2/m^2 at the surface "
+          f"({r.k_surface / NARITA_K:.2f}x people), {r.k_submerged:.1f} under it; the fluid model "
+          "has no wave drag, so the surface is not the higher one as it is for people")
+    return s
+
+
 def run(args: argparse.Namespace) -> dict:
     layers = _layers(args)
-    kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max}
+    kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max,
+          "body_shape": getattr(args, "body", "rounded")}
     for name, key in (("density", "water_density"), ("lungs", "lung_volume_l"),
                       ("friction", "friction"), ("timestep", "timestep")):
         if getattr(args, name) is not None:
             kw[key] = getattr(args, name)
     params = SwimmerParams(**kw)
+    if args.calibrate and args.tow is not None:
+        raise InputError("--calibrate and --tow are two different jobs: give one")
     if args.calibrate:
         return calibrate_command(args, params)
+    if args.tow is not None:
+        return tow_command(args, params)
     cycle_table = None
     if args.table is not None:
         cycle_table = load_table(load_stroke(args.stroke), args.table,
