@@ -76,15 +76,15 @@ class SwimmerParams:
     #: "rounded" (elliptic cylinders with ellipsoidal caps, flat hands and feet) or "box"
     #: (the paper's 16 boxes) hydrodynamic surface
     body_shape: str = "rounded"
-    #: stagnation pressure coefficient of the rounded trunk and head: 0.6 makes their
-    #: rounded front a bullet's nose, CD 0.5 x 0.6 = 0.30 on the frontal area (a bullet-
-    #: shaped body of revolution, CD 0.295, Hoerner 1965; the engine has no base suction,
-    #: so the whole body's drag sits on its front); 1 (exact stagnation) would make it an
-    #: isolated sphere's (CD 0.5, measured 0.47)
-    cp_trunk: float = 0.6
-    #: stagnation pressure coefficient of the rounded limbs (1.8: a cylinder in cross flow
-    #: CD 1.2, Hoerner 1965's 1.0-1.2 at Re 1e4-2e5)
-    cp_limb: float = 1.8
+    #: stagnation pressure coefficient of the rounded ends (the head, the shoulders): 0.6
+    #: makes them a bullet's nose, CD 0.5 x 0.6 = 0.30 on the frontal area (a bullet-shaped
+    #: body of revolution, CD 0.295, Hoerner 1965; the engine has no base suction, so the
+    #: whole body's drag sits on its front); 1 (exact stagnation) would make the head an
+    #: isolated sphere (CD 0.5, measured 0.47)
+    cp_nose: float = 0.6
+    #: stagnation pressure coefficient of the tubes' sides, trunk and limbs (1.8: a
+    #: cylinder in cross flow CD 1.2, Hoerner 1965's 1.0-1.2 at Re 1e4-2e5)
+    cp_tube: float = 1.8
     #: "pool" (floor 3 m down, visible water) or "bare" (swimmer.xml only)
     world: str = "pool"
     #: physics timestep [s]; 4 ms is stable with the PD gains of flapsim.swim.muscles
@@ -98,8 +98,8 @@ class SwimmerParams:
             raise InputError(f"water_density must be > 0 kg/m^3, got {self.water_density}")
         if self.body_shape not in ("rounded", "box"):
             raise InputError(f"body_shape must be 'rounded' or 'box', got {self.body_shape!r}")
-        if not (0.5 <= self.cp_trunk <= 2.0 and 0.5 <= self.cp_limb <= 2.0):
-            raise InputError("cp_trunk and cp_limb must be 0.5..2 (stagnation pressure "
+        if not (0.5 <= self.cp_nose <= 2.0 and 0.5 <= self.cp_tube <= 2.0):
+            raise InputError("cp_nose and cp_tube must be 0.5..2 (stagnation pressure "
                              "coefficients: 1 exact, up to ~2 with a bluff body's wake)")
         if self.world not in ("pool", "bare"):
             raise InputError(f"world must be 'pool' or 'bare', got {self.world!r}")
@@ -281,8 +281,10 @@ FLAT_SEGMENTS = ("hand_l", "hand_r", "foot_l", "foot_r")
 #: top and the upper arms' heads) and the head.
 _ROUNDED_ENDS = {"thorax": (True, False), "head": (True, True), "upper_arm_l": (True, False),
                  "upper_arm_r": (True, False)}
-#: coefficient table of each kind of surface (see Swimmer: 0 plate, 1 trunk, 2 limbs)
-TABLE_PLATE, TABLE_TRUNK, TABLE_LIMB = 0, 1, 2
+#: coefficient table of each kind of surface (see Swimmer): the hands' and feet's plates,
+#: the rounded ends (a nose in the flow along the body), the tubes' sides (a cylinder in
+#: the flow across it)
+TABLE_PLATE, TABLE_NOSE, TABLE_TUBE = 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -355,8 +357,8 @@ def _profile(s: RoundedSegment, patch_length: float, cap_bands: int
         for k in range(cap_bands):
             t = 0.5 * math.pi * k / cap_bands
             rings.append((-(s.hz - s.cap) - s.cap * math.cos(t), math.sin(t)))
-    n = max(1, math.ceil((z1 - z0) / patch_length - 1e-9))
-    rings += [(z0 + (z1 - z0) * i / n, 1.0) for i in range(n + 1)]
+    n = max(1, math.ceil((z1 - z0) / patch_length - 1e-9)) if z1 - z0 > 1e-9 else 0
+    rings += [(z0 + (z1 - z0) * i / max(n, 1), 1.0) for i in range(n + 1)]
     if top:
         for k in range(cap_bands - 1, -1, -1):
             t = 0.5 * math.pi * k / cap_bands
@@ -364,11 +366,43 @@ def _profile(s: RoundedSegment, patch_length: float, cap_bands: int
     return rings
 
 
+def tessellate(s: RoundedSegment, patch_length: float = 0.12, around: int = 10,
+               cap_bands: int = 2) -> list[tuple[np.ndarray, bool]]:
+    """The surface of ``s`` as (vertices (4, 3) world, on a cap) patches with outward
+    normals by the right-hand rule; a pole's triangles repeat their last vertex."""
+    rings = _profile(s, patch_length, cap_bands)
+    out = []
+    for i in range(len(rings) - 1):
+        (za, ra), (zb, rb) = rings[i], rings[i + 1]
+        cap = (s.rounded[1] and i < cap_bands) or (s.rounded[0]
+                                                   and i >= len(rings) - 1 - cap_bands)
+        for j in range(around):
+            p0, p1 = 2 * math.pi * j / around, 2 * math.pi * (j + 1) / around
+            quad = [s.point(za, ra, p0)]
+            if ra > 1e-12:  # a ring of radius 0 is a pole: the patch is a triangle
+                quad.append(s.point(za, ra, p1))
+            quad.append(s.point(zb, rb, p1))
+            if rb > 1e-12:
+                quad.append(s.point(zb, rb, p0))
+            quad = np.asarray(quad)
+            # outward: along the solid's gradient (x / rx^2, y / ry^2, zc / cap^2)
+            nrm = np.cross(quad[1] - quad[0], quad[2] - quad[0])
+            d = quad.mean(axis=0) - s.center
+            zc = math.copysign(max(0.0, abs(d[2]) - (s.hz - s.cap)), d[2]) if cap else 0.0
+            grad = np.array([d[0] / s.rx ** 2, d[1] / s.ry ** 2, zc / s.cap ** 2])
+            if nrm @ grad < 0:
+                quad = quad[::-1]
+            if len(quad) == 3:
+                quad = np.vstack([quad, quad[-1:]])
+            out.append((quad, cap))
+    return out
+
+
 def rounded_polygons(model: mujoco.MjModel, patch_length: float = 0.12, around: int = 10,
                      cap_bands: int = 2) -> PolygonSet:
     """The swimmer's rounded surface as a :class:`PolygonSet`: every segment but the hands
     and feet an elliptic cylinder with ellipsoidal caps (``around`` patches round it,
-    ``cap_bands`` latitude bands per cap; table 1 trunk and head, 2 limbs), the hands and
+    ``cap_bands`` latitude bands per cap; table 1 the caps, 2 the tubes), the hands and
     feet their box faces (table 0, the plate). A cap's patch inside a joint neighbour (its
     parent or child) in the zero pose is never wetted and left out. No forward vector: a
     rounded patch's force depends on the angle of the flow to it alone."""
@@ -387,37 +421,12 @@ def rounded_polygons(model: mujoco.MjModel, patch_length: float = 0.12, around: 
     for name, s in segs.items():
         xpos = data.xpos[bid[name]]
         xR = data.xmat[bid[name]].reshape(3, 3)
-        rings = _profile(s, patch_length, cap_bands)
-        polys = []
-        for i in range(len(rings) - 1):
-            (za, ra), (zb, rb) = rings[i], rings[i + 1]
-            cap = (s.rounded[1] and i < cap_bands) or (s.rounded[0]
-                                                       and i >= len(rings) - 1 - cap_bands)
-            for j in range(around):
-                p0, p1 = 2 * math.pi * j / around, 2 * math.pi * (j + 1) / around
-                quad = [s.point(za, ra, p0)]
-                if ra > 1e-12:  # a ring of radius 0 is a pole: the patch is a triangle
-                    quad.append(s.point(za, ra, p1))
-                quad.append(s.point(zb, rb, p1))
-                if rb > 1e-12:
-                    quad.append(s.point(zb, rb, p0))
-                quad = np.asarray(quad)
-                c = quad.mean(axis=0)
-                if cap and any(segs[o].inside(c) for o in neighbours[name] if o in segs):
-                    continue
-                # outward: along the solid's gradient (x / rx^2, y / ry^2, zc / cap^2)
-                nrm = np.cross(quad[1] - quad[0], quad[2] - quad[0])
-                d = c - s.center
-                zc = math.copysign(max(0.0, abs(d[2]) - (s.hz - s.cap)), d[2]) if cap else 0.0
-                grad = np.array([d[0] / s.rx ** 2, d[1] / s.ry ** 2, zc / s.cap ** 2])
-                if nrm @ grad < 0:
-                    quad = quad[::-1]
-                # triangles padded to four vertices (a repeated vertex adds no area)
-                if len(quad) == 3:
-                    quad = np.vstack([quad, quad[-1:]])
-                polys.append((quad - xpos) @ xR)
-        table = TABLE_TRUNK if name in ("pelvis", "abdomen", "thorax", "head") else TABLE_LIMB
-        sets.append(PolygonSet.from_polygons(bid[name], np.asarray(polys), None, table,
+        kept = [(quad, cap) for quad, cap in tessellate(s, patch_length, around, cap_bands)
+                if not (cap and any(segs[o].inside(quad.mean(axis=0))
+                                    for o in neighbours[name] if o in segs))]
+        polys = np.asarray([(quad - xpos) @ xR for quad, _ in kept])
+        tables = np.array([TABLE_NOSE if cap else TABLE_TUBE for _, cap in kept])
+        sets.append(PolygonSet.from_polygons(bid[name], polys, None, tables,
                                              labels=[name] * len(polys)))
     return PolygonSet.concat(sets)
 
@@ -491,8 +500,8 @@ class Swimmer:
             self.polygons = swimmer_polygons(self.model, p.patch_length, p.hide_joint_faces)
         self.flow = flow or FlowField()
         self._current = self.flow.params[1:4].copy()  # the user's uniform current
-        tables = [hoerner_plate(0.2, cd_crossflow=p.cd_normal), rounded_surface(p.cp_trunk),
-                  rounded_surface(p.cp_limb)]
+        tables = [hoerner_plate(0.2, cd_crossflow=p.cd_normal), rounded_surface(p.cp_nose),
+                  rounded_surface(p.cp_tube)]
         self.hydro = SurfaceForces(
             self.model, self.polygons, tables,
             FluidParams(density=p.water_density, friction=p.friction, front_facing_only=True,

@@ -13,7 +13,16 @@ from flapsim.core.errors import InputError
 from flapsim.core.io import atomic_video, save_npz
 from flapsim.core.validate import add_input_arg, add_output_arg, quantity, vector
 from flapsim.fluid.flow import FlowField, Source, Vortex
-from flapsim.swim.goals import Heading, Path, Point, figure_eight, load_path, load_trajectory
+from flapsim.swim.dive import SurfaceDive
+from flapsim.swim.goals import (
+    Heading,
+    Path,
+    Point,
+    Waypoints,
+    figure_eight,
+    load_path,
+    load_trajectory,
+)
 from flapsim.swim.interactive import SwimViewer, check_display
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.per_cycle import calibrate, load_table
@@ -43,8 +52,10 @@ def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
 def add_target_arguments(p: argparse.ArgumentParser) -> None:
     """What to steer for (shared with ``flapsim sweep``)."""
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--target", metavar="X,Y", type=vector("position", 2),
-                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke")
+    g.add_argument("--target", metavar="X,Y[,Z]",
+                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke. "
+                        "A Z below the surface (< 0) is reached by a surface dive (breathe "
+                        "out, pike, swim on under water, breathe in there and come up)")
     add_input_arg(g, "--path", metavar="FILE",
                   help="follow a path: a text file of 'x, y' points [m], one per line")
     g.add_argument("--figure8", type=quantity("radius"), metavar="R",
@@ -142,12 +153,34 @@ def _flow(args: argparse.Namespace) -> FlowField:
     return FlowField(prims)
 
 
+#: how close the head or the pelvis must come to a point below the surface [m] (the
+#: swim-dive scenario's radius)
+DIVE_RADIUS_M = 0.75
+
+
+def _target_xyz(text) -> tuple[float, ...]:
+    """--target X,Y or X,Y,Z: finite numbers, Z -50..0.5 m; a one-line error otherwise."""
+    parts = text if isinstance(text, tuple) else tuple(str(text).split(","))
+    try:
+        v = tuple(float(x) for x in parts)
+    except ValueError:
+        raise InputError(f"--target must be X,Y or X,Y,Z in metres, got {text!r}") from None
+    if len(v) not in (2, 3) or not np.all(np.isfinite(v)):
+        raise InputError(f"--target must be two or three finite numbers X,Y[,Z], got {text!r}")
+    if len(v) == 3 and not -50.0 <= v[2] <= 0.5:
+        raise InputError(f"--target depth Z must be -50..0.5 m (0: the surface), got {v[2]:g}")
+    return v
+
+
 def target_from_args(args: argparse.Namespace):
     """The target the target arguments name, or None."""
 
     if args.target is not None:
-        x, y = _vec(args.target, "--target", 2)
-        return Point(x, y)
+        v = _target_xyz(args.target)
+        if len(v) == 3 and v[2] < 0.0:
+            # the point below, then the surface above it: come up for air there
+            return Waypoints(np.array([v, (v[0], v[1], 0.0)]), radius=DIVE_RADIUS_M)
+        return Point(v[0], v[1])
     if args.moving_target is not None:
         x, y, vx, vy = _vec(args.moving_target, "--moving-target", 4)
         return Point(x, y, vx=vx, vy=vy)
@@ -156,7 +189,13 @@ def target_from_args(args: argparse.Namespace):
     if args.figure8 is not None:
         return figure_eight(args.figure8, lookahead=args.lookahead)
     if getattr(args, "trajectory", None) is not None:
-        return load_trajectory(args.trajectory)
+        traj = load_trajectory(args.trajectory)
+        if traj.is_3d and float(traj.table[:, 3].min()) < 0.0:
+            raise InputError(f"{args.trajectory}: a depth below the surface (z < 0) cannot be "
+                             "followed along a trajectory (the floating swimmer only pitches "
+                             "towards it); give z >= 0, or dive to a fixed point with "
+                             "--target X,Y,Z")
+        return traj
     if args.heading is not None:
         if not np.isfinite(args.heading):
             raise InputError("--heading must be a finite angle in degrees")
@@ -218,6 +257,10 @@ def tow_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
     return s
 
 
+def _t(v: float | None) -> str:
+    return "never" if v is None else f"at {v:.1f} s"
+
+
 def run(args: argparse.Namespace) -> dict:
     layers = _layers(args)
     kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max,
@@ -243,6 +286,19 @@ def run(args: argparse.Namespace) -> dict:
     current = _vec(args.current, "--current", 3)
     viewer = None
     swimmer = None
+    dive = None
+    if isinstance(target, Waypoints):
+        stroke = load_stroke(args.stroke)
+        if stroke.posture != "prone" or not any(k.startswith("yaw") for k in stroke.cycle):
+            raise InputError(f"a target below the surface is reached by a surface dive, which "
+                             f"the prone strokes swim (crawl, breaststroke), not "
+                             f"{args.stroke!r}")
+        if args.viewer:
+            raise InputError("the viewer's target stays on the surface: give --target X,Y")
+        if layers == "basic":
+            raise InputError("a dive needs the per-cycle layer (it pitches towards the point "
+                             "below): --layers cycle or all")
+        dive = SurfaceDive(target, lungs_l=params.lung_volume_l)
     if args.viewer:
         check_display()
         if target is not None and not isinstance(target, Point):
@@ -264,13 +320,20 @@ def run(args: argparse.Namespace) -> dict:
             result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
                           current=current, video_fps=args.fps if video else 0.0,
                           progress=viewer is None, layers=layers, target=target,
-                          swimmer=swimmer, control_hook=viewer, on_frame=on_frame,
+                          swimmer=swimmer, control_hook=viewer or dive, on_frame=on_frame,
                           cycle_table=cycle_table)
         finally:
             if viewer is not None:
                 viewer.close()
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    if dive is not None:
+        head = result.head[:, 2] - result.water_level
+        reached = dive.events["reached"]
+        up = np.flatnonzero((result.times > reached) & (head > 0.0)) if reached else []
+        s["dive"] = {"events_s": dict(dive.events), "closest_to_point_m": dive.closest_m,
+                     "deepest_head_m": float(head.min()),
+                     "head_resurfaced_s": float(result.times[up[0]]) if len(up) else None}
     if args.plot:
         track_plot(result, args.plot)
         s["plot"] = str(args.plot)
@@ -331,6 +394,11 @@ def run(args: argparse.Namespace) -> dict:
     for name, w in (s.get("feedback_weights") or {}).items():
         print(f"    {name:14s} weight mean {w['mean']:+.2f}, |w| {w['mean_abs']:.2f}, "
               f"saturated {100 * w['saturated_fraction']:.0f}% of the time")
+    if dive is not None:
+        dv = s["dive"]
+        print(f"  dive             started {_t(dv['events_s']['dive'])}, point reached "
+              f"{_t(dv['events_s']['reached'])} (closest {dv['closest_to_point_m']:.2f} m, head "
+              f"down to {dv['deepest_head_m']:+.2f} m), head up again {_t(dv['head_resurfaced_s'])}")
     if video:
         print(f"  video            {video}")
     if args.out:
