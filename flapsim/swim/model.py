@@ -73,9 +73,10 @@ class SwimmerParams:
     hide_joint_faces: bool = True
     #: normal drag coefficient of the AR-0.2 plate at 90 deg (Hoerner: 1.17 square .. 1.98 2-D)
     cd_normal: float = 1.2
-    #: "rounded" (elliptic cylinders with ellipsoidal caps, flat hands and feet) or "box"
-    #: (the paper's 16 boxes) hydrodynamic surface
-    body_shape: str = "rounded"
+    #: hydrodynamic surface: "box" (the paper's 16 boxes; the strokes and steering are
+    #: tuned on it) or "rounded" (elliptic tubes with ellipsoidal shoulders and head, flat
+    #: hands and feet: a towed person's drag, see flapsim.swim.tow)
+    body_shape: str = "box"
     #: stagnation pressure coefficient of the rounded ends (the head, the shoulders): 0.6
     #: makes them a bullet's nose, CD 0.5 x 0.6 = 0.30 on the frontal area (a bullet-shaped
     #: body of revolution, CD 0.295, Hoerner 1965; the engine has no base suction, so the
@@ -112,8 +113,9 @@ class SwimmerParams:
 
 
 def load_swimmer_model(lung_volume_l: float = XML_LUNG_L, world: str = "pool",
-                       timestep: float | None = None) -> mujoco.MjModel:
-    """Compile the swimmer with the upper trunk holding ``lung_volume_l`` litres of air.
+                       timestep: float | None = None, skin: bool = False) -> mujoco.MjModel:
+    """Compile the swimmer with the upper trunk holding ``lung_volume_l`` litres of air;
+    ``skin`` draws the rounded segments (see :func:`_add_skin`) instead of the boxes.
 
     The thorax box keeps its length and width:depth ratio and its mass; its volume is
     its cadaveric volume (mass / 1044 kg/m^3) plus the lungs.
@@ -133,9 +135,39 @@ def load_swimmer_model(lung_volume_l: float = XML_LUNG_L, world: str = "pool",
         spec.option.timestep = timestep
     with DISPATCHER.suspended():
         try:
-            return spec.compile()
+            model = spec.compile()
+            if skin:
+                _add_skin(spec, model)
+                model = spec.compile()
+            return model
         except ValueError as exc:  # pragma: no cover - the shipped file compiles
             raise ModelError(f"cannot compile {path}: {exc}") from None
+
+
+def _add_skin(spec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
+    """Draw the rounded segments the water sees (:func:`rounded_segments`), each a convex
+    mesh of its tessellation on its body, massless and without contacts; their boxes, which
+    keep the mass, inertia and contacts, become invisible."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    for name, seg in rounded_segments(model).items():
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        xpos, xR = data.xpos[b], data.xmat[b].reshape(3, 3)
+        verts = np.concatenate([q for q, _ in tessellate(seg, 0.06, 24, 6)])
+        verts = np.unique(np.round((verts - xpos) @ xR, 9), axis=0)
+        mesh = spec.add_mesh()
+        mesh.name = f"{name}_skin"
+        mesh.uservert = verts.ravel().tolist()
+        g = spec.body(name).add_geom()
+        g.name = f"{name}_skin"
+        g.type = mujoco.mjtGeom.mjGEOM_MESH
+        g.meshname = mesh.name
+        g.mass = 0.0
+        g.contype = 0
+        g.conaffinity = 0
+        box = spec.geom(name)
+        g.rgba = list(box.rgba)
+        box.rgba = [box.rgba[0], box.rgba[1], box.rgba[2], 0.0]
 
 
 # -- polygons --------------------------------------------------------------------------
@@ -489,7 +521,8 @@ class Swimmer:
                  ) -> None:
         self.params = params or SwimmerParams()
         p = self.params
-        self.model = load_swimmer_model(p.lung_volume_l, p.world, p.timestep)
+        self.model = load_swimmer_model(p.lung_volume_l, p.world, p.timestep,
+                                        skin=p.body_shape == "rounded")
         self.data = mujoco.MjData(self.model)
         self.joints = joint_info(self.model)
         self.body = {n: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, n)

@@ -51,7 +51,7 @@ def test_a_tessellated_sphere_and_cylinder_have_newtonian_drag():
 
 
 def test_the_towed_swimmer_meets_a_persons_drag():
-    r = tow([1.0, 1.5])
+    r = tow([1.0, 1.5], SwimmerParams(body_shape="rounded"))
     # Narita et al. 2017: 23.5 v^2 N; the acceptance band is 1.3x (people differ by
     # ~20 % in size and shape; Gatta 2016 measures ~25)
     assert r.k_surface <= 1.3 * NARITA_K and r.k_surface >= NARITA_K / 1.3
@@ -68,3 +68,28 @@ def test_bad_tow_speeds_are_refused():
         tow_drag([0.0])
     with pytest.raises(InputError, match="tow speeds"):
         tow_drag([1.0, float("nan")])
+
+
+def test_tow_and_target_depths_from_the_command_line(tmp_path, capsys):
+    from flapsim.cli import main as cli
+
+    out = tmp_path / "t.json"
+    assert cli.main(["swim", "--body", "rounded", "--tow", "1.0,2.0", "--json", str(out)]) == 0
+    import json
+
+    s = json.loads(out.read_text())
+    # the fit through two speeds equals the towed drags' own v^2 ratio (closed form)
+    k = (s["tow_drag_surface_n"][0] + 4 * s["tow_drag_surface_n"][1]) / 17.0
+    assert s["tow_drag_coefficient"] == pytest.approx(k, rel=1e-9)
+    assert s["wave_drag_modelled"] is False
+    # what cannot be done is refused in one line, never ignored
+    assert cli.main(["swim", "--tow", "1,x"]) == 2
+    assert cli.main(["swim", "--target", "1,2,3,4"]) == 2
+    assert cli.main(["swim", "--target", "1,2,-60"]) == 2
+    assert cli.main(["swim", "--stroke", "crawl", "--target", "8,0,-1.5"]) == 2
+    assert cli.main(["swim", "--stroke", "treading", "--target", "8,0,-1.5"]) == 2
+    traj = tmp_path / "deep.csv"
+    traj.write_text("t, x, y, z\n0, 0, 0, 0\n10, 10, 0, -1\n")
+    assert cli.main(["swim", "--trajectory", str(traj)]) == 2
+    err = capsys.readouterr().err
+    assert "crawl does not reach a point below" in err and "below the surface (z < 0)" in err

@@ -87,9 +87,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="extra lung volume [L] (default 3, the paper's floater)")
     p.add_argument("--friction", type=quantity("friction"), default=None,
                    help="skin-friction coefficient eta [N s/m^3] (default 2)")
-    p.add_argument("--body", choices=("rounded", "box"), default="rounded",
-                   help="hydrodynamic surface: rounded segments (a human body's drag, "
-                        "default) or the paper's 16 boxes")
+    p.add_argument("--body", choices=("box", "rounded"), default="box",
+                   help="hydrodynamic surface: the paper's 16 boxes (default; the strokes are "
+                        "tuned on them) or rounded segments (a towed person's drag, drawn "
+                        "rounded too)")
     p.add_argument("--buoyancy", choices=("exact", "linear"), default="exact",
                    help="submerged fraction: exact spherical cap or the paper's linear rule")
     p.add_argument("--r-min", type=quantity("flow_ratio"), default=0.0,
@@ -264,7 +265,7 @@ def _t(v: float | None) -> str:
 def run(args: argparse.Namespace) -> dict:
     layers = _layers(args)
     kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max,
-          "body_shape": getattr(args, "body", "rounded")}
+          "body_shape": getattr(args, "body", "box")}
     for name, key in (("density", "water_density"), ("lungs", "lung_volume_l"),
                       ("friction", "friction"), ("timestep", "timestep")):
         if getattr(args, name) is not None:
@@ -279,7 +280,8 @@ def run(args: argparse.Namespace) -> dict:
     cycle_table = None
     if args.table is not None:
         cycle_table = load_table(load_stroke(args.stroke), args.table,
-                                 layers="all" if layers == "all" else "cycle")
+                                 layers="all" if layers == "all" else "cycle",
+                                 body_shape=params.body_shape)
     video = args.video
     target = target_from_args(args)
     flow = _flow(args)
@@ -293,6 +295,10 @@ def run(args: argparse.Namespace) -> dict:
             raise InputError(f"a target below the surface is reached by a surface dive, which "
                              f"the prone strokes swim (crawl, breaststroke), not "
                              f"{args.stroke!r}")
+        if stroke.name == "crawl":
+            raise InputError("the crawl does not reach a point below the surface (after the "
+                             "surface dive its pitch-down sequence, 2.5-4.5 deg per cycle, "
+                             "cannot take it down): dive with --stroke breaststroke")
         if args.viewer:
             raise InputError("the viewer's target stays on the surface: give --target X,Y")
         if layers == "basic":
@@ -367,6 +373,9 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  centre of mass   {s['com_height_mean_m']:+.3f} m mean relative to the surface")
     print(f"  head drift       {s['head_horizontal_drift_max_m']:.3f} m max horizontally")
     print(f"  muscle power     {s['muscle_power_mean_w']:.0f} W mean (joint torques x speeds)")
+    if "roll_shoulders_deg" in s:
+        print(f"  carriage         roll +-{s['roll_shoulders_deg']:.0f} deg shoulders, "
+              f"+-{s['roll_hips_deg']:.0f} deg hips; trunk incline {s['trunk_incline_deg']:.0f} deg")
     print(f"  layers           {' + '.join(s['layers'])}")
     if "target" in s:
         t = s["target"]
