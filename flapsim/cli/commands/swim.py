@@ -326,7 +326,8 @@ def run(args: argparse.Namespace) -> dict:
             result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
                           current=current, video_fps=args.fps if video else 0.0,
                           progress=viewer is None, layers=layers, target=target,
-                          swimmer=swimmer, control_hook=viewer or dive, on_frame=on_frame,
+                          swimmer=swimmer, control_hook=viewer if viewer is not None else dive,
+                          on_frame=on_frame,
                           cycle_table=cycle_table)
         finally:
             if viewer is not None:
