@@ -26,7 +26,7 @@ from flapsim.bird.tasks.flight_tasks import Forest, PushSpec, Task, Tree, fly_ta
 from flapsim.bird.tasks.path_control import FlightPath, load_path
 from flapsim.core.errors import InputError
 from flapsim.fluid import flow
-from flapsim.scenarios.plots import flight_plot
+from flapsim.scenarios.plots import flight_plot, plot_stem
 from flapsim.scenarios.registry import EvalOptions, Scenario, get, register
 
 PUSH_FORCES_N = (3.0, 6.0, 8.0, 10.0, 12.0)
@@ -93,7 +93,7 @@ def _fly_task(task, opt: EvalOptions, record: bool):
 
 def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:
     files: list[str] = []
-    stem = sc.name + (f"-{tag}" if tag else "")
+    stem = plot_stem(sc.name, opt.path_file if sc.params.get("shape") == "file" else None, tag)
     if opt.plots_dir:
         out = Path(opt.plots_dir) / f"{stem}.png"
         flight_plot(task.path, r, out, title=f"{stem}: {r.status}", forest=task.forest)
