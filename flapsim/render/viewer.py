@@ -22,13 +22,13 @@ import queue
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import mujoco
 import mujoco.viewer
 import numpy as np
 
 from flapsim.core.errors import InputError
+from flapsim.render.scene import Arrow, Item, Marker, Polyline, add_items  # noqa: F401 - re-exported for the animals' viewers
 
 #: GLFW key codes (what MuJoCo's key callback receives); keys the viewer itself leaves alone
 KEY_INSERT, KEY_DELETE, KEY_RIGHT, KEY_LEFT, KEY_DOWN, KEY_UP = 260, 261, 262, 263, 264, 265
@@ -52,24 +52,6 @@ def check_display() -> None:
                          "MUJOCO_GL=glfw and a display (or under Xvfb)")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise InputError("the viewer needs a display: set DISPLAY (e.g. run under Xvfb)")
-
-
-@dataclass(frozen=True)
-class Marker:
-    """A sphere drawn in the scene (a target), m."""
-
-    pos: Sequence[float]
-    radius: float = 0.15
-    rgba: Sequence[float] = (0.9, 0.15, 0.1, 0.9)
-
-
-@dataclass(frozen=True)
-class Polyline:
-    """A path drawn as thin capsules through ``points`` (n, 3), m."""
-
-    points: np.ndarray
-    width: float = 0.03
-    rgba: Sequence[float] = (0.95, 0.55, 0.1, 0.8)
 
 
 class AnimalViewer:
@@ -177,29 +159,10 @@ class AnimalViewer:
             time.sleep(ahead)
         return True
 
-    def _draw(self, items: Sequence[Marker | Polyline]) -> None:
+    def _draw(self, items: Sequence[Item]) -> None:
         scn = self.handle.user_scn
         scn.ngeom = 0
-        for it in items:
-            if isinstance(it, Marker):
-                if scn.ngeom >= scn.maxgeom:
-                    return
-                mujoco.mjv_initGeom(scn.geoms[scn.ngeom], mujoco.mjtGeom.mjGEOM_SPHERE,
-                                    np.array([it.radius, 0, 0]), np.asarray(it.pos, float),
-                                    np.eye(3).ravel(), np.asarray(it.rgba, np.float32))
-                scn.ngeom += 1
-            else:
-                pts = np.asarray(it.points, float)
-                step = max(1, int(np.ceil(len(pts) / max(1, scn.maxgeom - scn.ngeom - 8))))
-                pts = pts[::step]
-                for a, b in zip(pts[:-1], pts[1:], strict=True):
-                    if scn.ngeom >= scn.maxgeom:
-                        return
-                    g = scn.geoms[scn.ngeom]
-                    mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3),
-                                        np.eye(3).ravel(), np.asarray(it.rgba, np.float32))
-                    mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, it.width, a, b)
-                    scn.ngeom += 1
+        add_items(scn, items)
 
     def close(self) -> None:
         """Close the window and wait (up to 10 s) until the viewer's thread is done."""
