@@ -12,9 +12,12 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-PATH_RGBA = (1.0, 0.50, 0.0, 1.0)
-"""The path asked: an opaque orange, a colour neither the sky, the ground nor the dove has
-(tests look for it in the frames)."""
+PATH_RGBA = (0.5, 0.25, 0.0, 1.0)
+"""The path asked, as given to MuJoCo: lines come out at twice their colour (clipped; the
+headlight and the sun both light them, measured), so it is drawn as :data:`PATH_SHOWN`."""
+PATH_SHOWN = (255, 128, 0)
+"""The path's colour in the picture: an opaque orange that neither the sky, the ground nor
+the dove has (tests look for it in the frames), RGB 0-255."""
 TRAIL_RGB = (0.10, 0.45, 1.0)
 """The trajectory flown: blue, fading with age."""
 
@@ -30,11 +33,14 @@ class Marker:
 
 @dataclass(frozen=True)
 class Polyline:
-    """A path drawn as thin capsules through ``points`` (n, 3), m."""
+    """A path through ``points`` (n, 3), m: a line ``line_px`` pixels wide whatever its
+    distance (seen far ahead, never hiding the animal on it), or (``line_px`` None) capsules
+    of radius ``width``, m."""
 
     points: np.ndarray
     width: float = 0.03
     rgba: Sequence[float] = PATH_RGBA
+    line_px: float | None = 3.0
 
 
 @dataclass(frozen=True)
@@ -68,6 +74,8 @@ class Trail:
     rgb: Sequence[float] = TRAIL_RGB
     alpha: float = 0.9
     max_segments: int = 150
+    line_px: float | None = 4.0
+    """As :attr:`Polyline.line_px`."""
 
 
 Item = Marker | Polyline | Cylinder | Arrow | Trail
@@ -86,11 +94,12 @@ def _free(scn: mujoco.MjvScene) -> bool:
     return scn.ngeom < scn.maxgeom
 
 
-def _capsule(scn: mujoco.MjvScene, a, b, width: float, rgba) -> None:
+def _segment(scn: mujoco.MjvScene, a, b, width: float, rgba, line_px: float | None) -> None:
+    kind = mujoco.mjtGeom.mjGEOM_CAPSULE if line_px is None else mujoco.mjtGeom.mjGEOM_LINE
     g = scn.geoms[scn.ngeom]
-    mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3),
-                        np.eye(3).ravel(), np.asarray(rgba, np.float32))
-    mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, width, np.asarray(a, float),
+    mujoco.mjv_initGeom(g, kind, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
+                        np.asarray(rgba, np.float32))
+    mujoco.mjv_connector(g, kind, width if line_px is None else line_px, np.asarray(a, float),
                          np.asarray(b, float))
     scn.ngeom += 1
 
@@ -130,7 +139,7 @@ def add_items(scn: mujoco.MjvScene, items: Sequence[Item]) -> None:
                 if not _free(scn):
                     return
                 alpha = it.alpha * (i + 1) / n
-                _capsule(scn, pts[i], pts[i + 1], it.width, (*it.rgb, alpha))
+                _segment(scn, pts[i], pts[i + 1], it.width, (*it.rgb, alpha), it.line_px)
         else:
             pts = np.asarray(it.points, float)
             room = max(1, scn.maxgeom - scn.ngeom - 8)
@@ -138,4 +147,4 @@ def add_items(scn: mujoco.MjvScene, items: Sequence[Item]) -> None:
             for a, b in zip(pts[:-1], pts[1:], strict=True):
                 if not _free(scn):
                     return
-                _capsule(scn, a, b, it.width, it.rgba)
+                _segment(scn, a, b, it.width, it.rgba, it.line_px)

@@ -166,6 +166,7 @@ class TrailSpec:
 
     seconds: float = 3.0
     width: float = 0.02
+    line_px: float | None = 4.0
 
 
 def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.PathLike,
@@ -231,7 +232,7 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
                     history.append(d.xpos[rig.body].copy())
                     del history[:-keep]
                     if len(history) > 1:
-                        extra.append(Trail(np.array(history), width=trail.width))
+                        extra.append(Trail(np.array(history), width=trail.width, line_px=trail.line_px))
                 add_items(renderer.scene, extra)
                 img = renderer.render()
                 if overlay is not None:

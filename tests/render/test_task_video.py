@@ -10,11 +10,11 @@ from flapsim.bird.flight.video import MIN_VIDEO_S, dove_video, video_timing
 from flapsim.bird.tasks.flight_tasks import Task, TaskResult
 from flapsim.bird.tasks.path_shapes import figure8
 from flapsim.core.errors import InputError
-from flapsim.render.scene import PATH_RGBA
+from flapsim.render.scene import PATH_SHOWN
 from flapsim.scenarios import flight as scen_flight
 from flapsim.scenarios.registry import EvalOptions, get
 
-W, H = 96, 72  # tiny frames: rendering is slow on a CPU; the path is still a few pixels wide
+W, H = 128, 96  # small frames: rendering is slow on a CPU; the path is still 3 pixels wide
 
 
 def _on_path(dove: Dove, path, seconds: float) -> TaskResult:
@@ -37,7 +37,7 @@ def _on_path(dove: Dove, path, seconds: float) -> TaskResult:
 def _path_pixels(frame: np.ndarray) -> np.ndarray:
     """Pixels of the path's colour (orange: R high, G about half, B low), within the
     compression's and the lighting's spread (+-60 of 255 on each channel)."""
-    want = 255 * np.asarray(PATH_RGBA[:3])
+    want = np.asarray(PATH_SHOWN)
     f = frame.astype(int)
     return np.all(np.abs(f - want) < 60, axis=-1)
 

@@ -68,7 +68,7 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
     step_s = stride * dt  # flight time between frames
     items: list[Item] = list(targets) + tree_items(forest)
     if path_points is not None and len(path_points) > 1:
-        items.insert(0, Polyline(np.asarray(path_points, float), width=0.035))
+        items.insert(0, Polyline(np.asarray(path_points, float), line_px=max(3.0, height / 160)))
     beats = np.asarray(wingbeat_times, float) if wingbeat_times is not None else None
     pos = shown[:, 0:3]
     speed = np.zeros(len(shown))
@@ -102,5 +102,5 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
 
     return render_video(model, shown, path, fps=fps, camera=Camera("trunk", camera),
                         width=width, height=height, before_frame=hook, items=items,
-                        trail=TrailSpec(seconds=2.0, width=0.008), overlay=overlay, frame_dt=step_s,
+                        trail=TrailSpec(seconds=2.0, line_px=max(2.0, height / 120)), overlay=overlay, frame_dt=step_s,
                         progress=progress, frame_items=mates_at if len(mates) else None)
