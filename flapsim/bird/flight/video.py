@@ -102,5 +102,6 @@ def dove_video(dove, qpos_steps: np.ndarray, path: str | os.PathLike, fps: float
 
     return render_video(model, shown, path, fps=fps, camera=Camera("trunk", camera),
                         width=width, height=height, before_frame=hook, items=items,
-                        trail=TrailSpec(seconds=2.0, line_px=max(2.0, height / 120)), overlay=overlay, frame_dt=step_s,
+                        trail=TrailSpec(seconds=2.0, line_px=max(2.0, height / 120)),
+                        overlay=overlay, frame_dt=step_s,
                         progress=progress, frame_items=mates_at if len(mates) else None)
