@@ -122,7 +122,6 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
     (:func:`~flapsim.bird.control.controller.load_controller`: ``mirror``, ``predict``,
     ``config``, ...)."""
 
-    print("flapsim view: loading the dove and its controller...", file=sys.stderr, flush=True)
     # a gust primitive that is inert (zero amplitude) until Delete re-packs it in place
     fl, ctl = build_flight(Task(path if path is not None else _dummy_path(),
                                 flow=(Gust((0.0, 1.0, 0.0), 0.0, 0.0, GUST_S),), feathers=feathers),
@@ -192,8 +191,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 target.speed = cmd.speed
                 target.begin(fl.data.qpos[0:3], v_prev)
             if view is None:
-                print("flapsim view: the first wingbeat (compiling the force kernels)...",
-                      file=sys.stderr, flush=True)
+                print("flapsim view: dove and controller loaded; flying the first wingbeat "
+                      "(compiling the force kernels)...", file=sys.stderr, flush=True)
             step = ctl.choose(target, record=True, push=push)
             e = step.end
             if view is None:  # the window opens on a flying bird, not on a loading screen

@@ -51,7 +51,8 @@ def _open_dove_viewer(xvfb_display, out: Path):
     env = xvfb_display.env(PYTHONPATH=str(REPO))  # this display only, GLFW on X11
     app = xvfb_display.spawn([sys.executable, "-m", "flapsim.cli.main", "view", "--seconds", "4",
                               "--json", str(out)], env)
-    return app, xvfb_display.window(app, env), env
+    # the window opens after the first wingbeat is flown: minutes on a loaded machine
+    return app, xvfb_display.window(app, env, timeout=180.0), env
 
 
 def _screenshots(app, xvfb_display, box: tuple[int, int, int, int], n: int = 6) -> list:
