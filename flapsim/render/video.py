@@ -29,6 +29,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 from tqdm import tqdm
 
 from flapsim.core.errors import InputError, SimulationError
@@ -142,8 +143,6 @@ class CameraRig:
 
 def draw_text(frame: np.ndarray, text: str) -> np.ndarray:
     """``text`` (lines) in the top-left corner of an RGB ``frame`` on a translucent box."""
-    from PIL import Image, ImageDraw, ImageFont
-
     h = frame.shape[0]
     size = max(8, h // 34)
     img = Image.fromarray(frame).convert("RGBA")

@@ -63,7 +63,6 @@ def flight_plot(path, r, out: str | Path, title: str = "", forest=None) -> dict:
     errors per wingbeat (Ep, Ef in m); middle: the orientation errors (Er, Eo in deg);
     below: the steering per wingbeat (deg). Returns the axes' limits (for checks)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.collections import LineCollection  # noqa: F401 - registers 2D collections
     from matplotlib.figure import Figure
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
