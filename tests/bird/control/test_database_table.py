@@ -58,7 +58,7 @@ def test_tasks_fly_with_the_databases_table(revolving_db):
     (["--samples", "10", "--tail-bias-deg", "45"], "--tail-bias-deg must be within -40..40"),
     (["--samples", "10", "--twist-bias-deg", "45"], "--twist-bias-deg must be within -30..30"),
     (["--samples", "10", "--phase", "2", "--from", "x.db", "--table", "dove_revolving"],
-     "--table, --tail-bias-deg and --twist-bias-deg are for phase 1"),
+     "--table, --tail-bias-deg, --twist-bias-deg and --cruise are for phase 1"),
     (["--merge", "a.db", "b.db", "--table", "dove_revolving"], "--table is for training"),
 ])
 def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
