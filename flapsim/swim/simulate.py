@@ -16,7 +16,8 @@ from tqdm import tqdm
 
 from flapsim.core.errors import InputError
 from flapsim.fluid.flow import FlowField
-from flapsim.render.video import new_renderer
+from flapsim.render.scene import Marker, add_items
+from flapsim.render.video import Camera, CameraRig, new_renderer
 from flapsim.swim.continuous import RULES, HandRules
 from flapsim.swim.goals import Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
@@ -367,8 +368,9 @@ def swim(
         renderer = new_renderer(m, *video_size)
         frame_every = max(1, int(round(1.0 / (video_fps * dt))))
         cam = mujoco.MjvCamera()
-        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        cam.azimuth, cam.elevation, cam.distance = 120.0, -18.0, 3.2
+        # the shared chase camera: behind the swimmer along its heading, the target ahead
+        rig = CameraRig(m, Camera(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, pelvis), "chase",
+                                  distance=3.2, elevation_deg=-18.0, lead_m=0.8, tau_s=0.6))
     bar = None
     if progress:
         bar = tqdm(total=nsteps, unit=" sim s", unit_scale=dt, desc=st.name, leave=False)
@@ -390,8 +392,10 @@ def swim(
                         pos = getattr(target, "position", None)
                         txyz.append(pos(float(d.time)) if pos is not None else np.full(3, np.nan))
                 if renderer is not None and i % frame_every == 0:
-                    cam.lookat[:] = d.subtree_com[pelvis]
+                    rig.update(cam, d, frame_every * dt if i else 0.0)
                     renderer.update_scene(d, camera=cam)
+                    if txyz and np.all(np.isfinite(txyz[-1])):  # the target, in view ahead
+                        add_items(renderer.scene, [Marker(txyz[-1])])
                     if on_frame is not None:
                         on_frame(renderer.render())
                     else:
