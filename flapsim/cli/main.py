@@ -34,7 +34,7 @@ import mujoco
 
 from flapsim import __version__
 from flapsim.core import environment, interrupts
-from flapsim.core.errors import FlapsimError
+from flapsim.core.errors import FlapsimError, OutputError
 from flapsim.core.io import _jsonable, write_json
 from flapsim.core.validate import add_output_arg, check_outputs, guard_gl
 
@@ -158,6 +158,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"results written to {args.json}")
                 if hasattr(args._module, "finished"):
                     args._module.finished(args)  # e.g. eval's journal of finished runs
+    except OutputError as exc:  # the system refused a write: not the user's input
+        print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except FlapsimError as exc:
         print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
         return 2

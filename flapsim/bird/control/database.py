@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from flapsim import __version__
-from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.errors import DataFileError, InputError, OutputError
 from flapsim.core.io import _jsonable, atomic_path, file_sha256
 
 log = logging.getLogger(__name__)
@@ -301,8 +301,28 @@ def _scan(path: Path, data: bytes) -> tuple[dict, list, int, int]:
     return header, records, pos, size - pos
 
 
-def _assemble(path: Path | None, header: dict, records: list, torn: int) -> Database:
+def _same_record(a: tuple, b: tuple) -> bool:
+    """Whether two decoded records hold the same chunk with the same samples."""
+    (da, ia, xa), (db_, ib, xb) = a, b
+    return (da == db_ and np.array_equal(ia, ib) and xa.keys() == xb.keys()
+            and all(np.array_equal(xa[k], xb[k]) for k in xa))
+
+
+def _dedupe(records: list) -> list:
+    """``records`` sorted by start, each chunk once: a chunk written twice with the same
+    samples (two runs of one journal that each ran it: a sample depends only on the seed
+    and its index) is one chunk, not damage."""
     records = sorted(records, key=lambda r: r[0]["start"])
+    out: list = []
+    for r in records:
+        if out and r[0]["start"] == out[-1][0]["start"] and _same_record(out[-1], r):
+            continue
+        out.append(r)
+    return out
+
+
+def _assemble(path: Path | None, header: dict, records: list, torn: int) -> Database:
+    records = _dedupe(records)
     for (a, _, _), (b, _, _) in zip(records, records[1:], strict=False):
         if b["start"] < a["stop"]:
             raise DataFileError(f"{path} has overlapping chunks {a['start']}..{a['stop']} and "
@@ -326,15 +346,19 @@ def _assemble(path: Path | None, header: dict, records: list, torn: int) -> Data
 
 
 def _read_bytes(path: Path) -> bytes:
+    _read_bytes_checks(path)
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise DataFileError(f"cannot read database {path}: {exc.strerror}") from None
+
+
+def _read_bytes_checks(path: Path) -> None:
     if not path.exists():
         raise DataFileError(f"database {path} does not exist; check the path or create it with "
                             f"flapsim train --out {path}")
     if path.is_dir():
         raise DataFileError(f"database {path} is a folder; pass the database file")
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise DataFileError(f"cannot read database {path}: {exc.strerror}") from None
 
 
 def check_header(db_header: dict, path: Path | str, *, kind: str | None = None,
@@ -401,8 +425,8 @@ def _signals_deferred() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-def _write_atomic(path: Path, blobs: list[bytes]) -> None:
-    with atomic_path(path) as tmp:
+def _write_atomic(path: Path, blobs: list[bytes], exclusive: bool = False) -> None:
+    with atomic_path(path, exclusive=exclusive) as tmp:
         with open(tmp, "wb") as fh:
             for b in blobs:
                 fh.write(b)
@@ -410,63 +434,154 @@ def _write_atomic(path: Path, blobs: list[bytes]) -> None:
             os.fsync(fh.fileno())
 
 
-class DatabaseWriter:
-    """Appends chunk records to a database journal (one writer per file: an exclusive
-    lock refuses a second one)."""
+class FinishedDatabase(InputError):
+    """The journal to resume was finished meanwhile (by another run of it)."""
 
-    def __init__(self, path: Path, header: dict, end: int, fsync: bool = True) -> None:
-        self.path = path
-        self.header = header
-        self.fsync = fsync
+
+def _lock_file(path: Path) -> Any:
+    """``path`` opened for update under an exclusive lock (a second writer is refused in one
+    line), checked to still be the file at ``path``: one finished meanwhile was renamed over
+    it, and the lock is then taken on the new file."""
+    for _ in range(8):
         try:
-            self._fh = open(path, "r+b")  # noqa: SIM115 - closed in close()
+            fh = open(path, "r+b")  # noqa: SIM115 - the caller closes it
+        except FileNotFoundError:
+            raise DataFileError(f"database {path} does not exist; check the path or create it "
+                                f"with flapsim train --out {path}") from None
         except OSError as exc:
             raise InputError(f"cannot write database {path}: {exc.strerror}") from None
         try:
-            fcntl.flock(self._fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            self._fh.close()
+            fh.close()
             raise InputError(f"{path} is being written by another flapsim train; wait for it or "
                              "choose another --out") from None
+        try:
+            st, now = os.fstat(fh.fileno()), os.stat(path)
+            if (st.st_ino, st.st_dev) == (now.st_ino, now.st_dev):
+                return fh
+        except FileNotFoundError:
+            pass
+        fh.close()
+    raise InputError(f"{path} keeps being replaced while it is opened; is another program "
+                     "writing it? choose another --out")
+
+
+def _read_locked(fh: Any, path: Path) -> bytes:
+    try:
+        fh.seek(0)
+        return fh.read()
+    except OSError as exc:
+        raise DataFileError(f"cannot read database {path}: {exc.strerror}") from None
+
+
+@contextlib.contextmanager
+def _locked(path: Path, writer: DatabaseWriter | None = None) -> Iterator[Any]:
+    """The file at ``path`` under the journal's lock (``writer``'s when it holds it)."""
+    if writer is not None and not writer.closed:
+        yield writer._fh
+        return
+    _read_bytes_checks(path)
+    try:
+        fh = _lock_file(path)
+    except InputError:
+        if os.access(path, os.W_OK):
+            raise
+        fh = None  # a read-only file: nobody appends to it
+    if fh is None:
+        with _open_read(path) as ro:
+            yield ro
+        return
+    try:
+        yield fh
+    finally:
+        fh.close()
+
+
+class DatabaseWriter:
+    """Appends chunk records to a database journal (one writer per file: an exclusive
+    lock refuses a second one). What the file holds is read under the lock, so a chunk
+    another run of the same journal wrote before this one took the lock is known
+    (:attr:`chunks`) and not written twice."""
+
+    def __init__(self, path: Path, header: dict, fh: Any, end: int, fsync: bool = True,
+                 chunks: set[tuple[int, int]] | None = None) -> None:
+        self.path = path
+        self.header = header
+        self.fsync = fsync
+        self.chunks: set[tuple[int, int]] = set(chunks or ())
+        """(start, stop) of every chunk in the file"""
+        self._fh = fh
         self._fh.seek(end)
         self._fh.truncate(end)
         self._end = end
 
+    @property
+    def closed(self) -> bool:
+        return self._fh.closed
+
     @classmethod
     def create(cls, path: str | os.PathLike, header: dict, fsync: bool = True) -> DatabaseWriter:
         """Start a new journal at ``path`` (which must not exist) with ``header``
-        (``fields`` is required; kind, versions and ``finalized`` are filled in)."""
+        (``fields`` is required; kind, versions and ``finalized`` are filled in). The file
+        appears whole, and never replaces one another run created meanwhile."""
         path = Path(path)
         if path.exists():
             raise InputError(f"{path} already exists; resume it or choose another --out")
         header = _complete_header(header, finalized=False)
         blob = _encode_preamble(header)
-        _write_atomic(path, [blob])
-        return cls(path, header, len(blob), fsync)
+        try:
+            _write_atomic(path, [blob], exclusive=True)
+        except FileExistsError:
+            raise InputError(f"{path} already exists; resume it or choose another --out") from None
+        writer, _ = cls.resume(path, fsync)
+        return writer
 
     @classmethod
     def resume(cls, path: str | os.PathLike, fsync: bool = True) -> tuple[DatabaseWriter, Database]:
-        """Reopen a journal: its torn last chunk (if any) is cut off."""
+        """Reopen a journal: its torn last chunk (if any) is cut off. The file is read after
+        the lock is taken: what another run appended before is kept, never cut off."""
         path = Path(path)
-        header, records, end, torn = _scan(path, _read_bytes(path))
-        if header.get("finalized"):
-            raise InputError(f"{path} is a finished database; choose another --out")
-        db = _assemble(path, header, records, torn)
+        _read_bytes_checks(path)
+        fh = _lock_file(path)
+        try:
+            header, records, end, torn = _scan(path, _read_locked(fh, path))
+            if header.get("finalized"):
+                raise FinishedDatabase(f"{path} is a finished database; choose another --out")
+            db = _assemble(path, header, records, torn)
+        except BaseException:
+            fh.close()
+            raise
         if torn:
             log.warning("%s: cutting off %d bytes of an interrupted chunk", path, torn)
-        return cls(path, header, end, fsync), db
+        chunks = {(int(d["start"]), int(d["stop"])) for d, _, _ in records}
+        return cls(path, header, fh, end, fsync, chunks), db
 
-    def append(self, result: Any) -> None:
-        """Append one chunk (a :class:`ChunkResult`-like object) as one record."""
-        blob = _encode_record(self.header, int(result.start), int(result.stop),
-                              np.asarray(result.index), result.arrays, result.rejected)
+    def append(self, result: Any) -> bool:
+        """Append one chunk (a :class:`ChunkResult`-like object) as one record; False (and
+        nothing written) when the file holds that chunk already."""
+        start, stop = int(result.start), int(result.stop)
+        if (start, stop) in self.chunks:
+            return False
+        blob = _encode_record(self.header, start, stop, np.asarray(result.index), result.arrays,
+                              result.rejected)
         with _signals_deferred():
-            self._fh.seek(self._end)
-            self._fh.write(blob)
-            self._fh.flush()
-            if self.fsync:
-                os.fsync(self._fh.fileno())
+            try:
+                self._fh.seek(self._end)
+                self._fh.write(blob)
+                self._fh.flush()
+                if self.fsync:
+                    os.fsync(self._fh.fileno())
+            except OSError as exc:
+                # a full disk: the chunks before are whole; the part written is cut off
+                with contextlib.suppress(OSError):
+                    self._fh.truncate(self._end)
+                raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}; the "
+                                  f"{len(self.chunks)} chunks written so far are kept: free "
+                                  "space and run the same command again to resume") from None
             self._end += len(blob)
+        self.chunks.add((start, stop))
+        return True
 
     def close(self) -> None:
         if not self._fh.closed:
@@ -540,14 +655,23 @@ def contiguous_prefix(chunks: list[tuple[int, int, int]]) -> list[tuple[int, int
 
 
 def finalize_database(path: str | os.PathLike, n_samples: int | None = None,
-                      float32: bool = False) -> Database:
+                      float32: bool = False, writer: DatabaseWriter | None = None) -> Database:
     """Rewrite a journal as a finished database: the first ``n_samples`` accepted
     samples by index (all of the gap-free prefix of chunks when ``None``), in index
     order, in one record; the rejected counts of the chunks used. Written to a
     temporary file and renamed over ``path``. ``float32``: store float fields in single
-    precision (half the size; the journal keeps double, so a resumed run is unchanged)."""
+    precision (half the size; the journal keeps double, so a resumed run is unchanged).
+
+    Done under the journal's lock (``writer``'s, when the caller holds it): another run of
+    the same journal appending while this one reads would be cut off by the rename."""
     path = Path(path)
-    header, records, _, torn = _scan(path, _read_bytes(path))
+    with _locked(path, writer) as fh:
+        return _finalize_locked(path, _read_locked(fh, path), n_samples, float32)
+
+
+def _finalize_locked(path: Path, data: bytes, n_samples: int | None, float32: bool) -> Database:
+    header, records, _, torn = _scan(path, data)
+    records = _dedupe(records)
     db = _assemble(path, header, records, torn)
     if db.finalized:
         if n_samples is not None and db.n != n_samples:

@@ -38,6 +38,7 @@ from flapsim import __version__
 from flapsim.bird.control.database import (
     DEFAULT_KIND,
     DatabaseWriter,
+    FinishedDatabase,
     canonical_json,
     fields_spec,
     finalize_database,
@@ -212,9 +213,20 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
     before = min(prefix.total(), n_samples)
     startup = 0.0
     if before < n_samples:
-        startup = _run(config, out, n_samples, worker_cls, workers, backend, address,
-                       chunk_size, progress, ident, existing, done, prefix)
-    db = finalize_database(out, n_samples, float32=float32)
+        try:
+            startup, db = _run(config, out, n_samples, worker_cls, workers, backend, address,
+                               chunk_size, progress, ident, existing, done, prefix, float32)
+        except FinishedDatabase:
+            # another run of this journal finished it while this one started its pool
+            fin = load_database(out)
+            if fin.n != n_samples:
+                raise InputError(f"{out} was finished meanwhile with {fin.n} samples; rerun with "
+                                 f"--samples {fin.n}, or choose another --out") from None
+            return _summary(fin, out, wall=time.perf_counter() - t0, new=0, before=before,
+                            startup=0.0, workers=workers, backend=backend, address=address,
+                            already=True)
+    else:
+        db = finalize_database(out, n_samples, float32=float32)
     summary = _summary(db, out, wall=time.perf_counter() - t0, new=max(0, db.n - before),
                        before=before, startup=startup, workers=workers, backend=backend,
                        address=address, already=False)
@@ -222,9 +234,28 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
     return summary
 
 
+def _check_journal(old: dict, header: dict, out: Path) -> None:
+    """Refuse to resume a journal of another run (identity, provenance, chunk size)."""
+    _check_same_run(old, header, out)
+    if canonical_json(old.get("provenance")) != canonical_json(header["provenance"]):
+        what = (f"model {old.get('model_hash')}, now {header.get('model_hash')}"
+                if old.get("model_hash") != header.get("model_hash")
+                else "provenance (reference data)")
+        raise InputError(f"{out} was started with another {what}; choose another --out")
+    if old.get("chunk_size") != header["chunk_size"]:
+        raise InputError(f"{out} was started with --chunk-size {old.get('chunk_size')}; rerun "
+                         f"with --chunk-size {old.get('chunk_size')} to resume it, or choose "
+                         "another --out")
+
+
 def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int, backend: str,
          address: str | None, chunk_size: int, progress: bool, ident: dict, existing: Any,
-         done: dict[int, tuple[int, int]], prefix: _Prefix) -> float:
+         done: dict[int, tuple[int, int]], prefix: _Prefix, float32: bool) -> tuple[float, Any]:
+    """Run the pool until the prefix holds ``n_samples``; finalize under the journal's lock.
+
+    What the file holds is read again once its lock is taken (:meth:`DatabaseWriter.resume`):
+    another run of the same journal may have added chunks since ``done`` was read (while this
+    one started its pool), and they are neither run nor written again."""
 
     writer: DatabaseWriter | None = None
     buffered: list[Any] = []
@@ -238,15 +269,37 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
         startup = time.perf_counter() - t0  # start the pool and build one worker
         header = {**ident, "model_hash": prov.get("model_hash"), "provenance": prov,
                   "chunk_size": chunk_size}
+        accepted = examined = 0
+
+        def attach(new: bool, fields: list | None = None) -> DatabaseWriter:
+            """Take the journal's lock (creating the file, or resuming it, also when another
+            run created it meanwhile) and learn every chunk it holds."""
+            nonlocal accepted, examined
+            w = None
+            if new:
+                try:
+                    w = DatabaseWriter.create(out, {**header, "fields": fields})
+                except InputError:
+                    if not out.exists():
+                        raise
+            if w is None:
+                w, db = DatabaseWriter.resume(out)
+            stack.callback(w.close)
+            _check_journal(w.header, header, out)
+            for start, stop in sorted(w.chunks):
+                if start % chunk_size or stop - start != chunk_size:
+                    raise InputError(f"{out} holds chunk {start}..{stop}, not on the --chunk-size "
+                                     f"{chunk_size} grid; choose another --out")
+            if not new or w.chunks:
+                db = load_database(out) if new else db
+                for start, _, acc in db.chunks:
+                    done[start // chunk_size] = (acc, chunk_size)
+            accepted = sum(a for a, _ in done.values())
+            examined = sum(e for _, e in done.values())
+            return w
+
         if existing is not None:
-            old = existing.header
-            if canonical_json(old.get("provenance")) != canonical_json(prov):
-                what = (f"model {old.get('model_hash')}, now {prov.get('model_hash')}"
-                        if old.get("model_hash") != prov.get("model_hash")
-                        else "provenance (reference data)")
-                raise InputError(f"{out} was started with another {what}; choose another --out")
-            writer, _ = DatabaseWriter.resume(out)
-            stack.callback(writer.close)
+            writer = attach(False)
         accepted = sum(a for a, _ in done.values())
         examined = sum(e for _, e in done.values())
         bar = stack.enter_context(tqdm(total=n_samples, initial=min(prefix.total(), n_samples),
@@ -278,12 +331,12 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
                     done[k] = (0, chunk_size)
                     examined += chunk_size
                     continue
-                writer = DatabaseWriter.create(out, {**header, "fields": fields_spec(res.arrays)})
-                stack.callback(writer.close)
+                writer = attach(True, fields_spec(res.arrays))
                 for b in buffered:
                     writer.append(b)
                 buffered.clear()
-            writer.append(res)
+            if not writer.append(res):  # another run of this journal wrote it meanwhile
+                continue
             m = int(len(res.index))
             done[k] = (m, chunk_size)
             accepted += m
@@ -293,4 +346,5 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
                 bar.update(total - shown)
                 shown = total
             bar.set_postfix(rejected=examined - accepted, refresh=False)
-        return startup
+        db = finalize_database(out, n_samples, float32=float32, writer=writer)
+        return startup, db
