@@ -609,20 +609,22 @@ def _complete_header(header: dict, finalized: bool) -> dict:
 
 
 def _write_final(path: Path, header: dict, index: np.ndarray, arrays: Mapping[str, np.ndarray],
-                 rejected: Mapping[str, int], examined: int) -> None:
+                 rejected: Mapping[str, int], examined: int, exclusive: bool = False) -> None:
     header = _complete_header({**header, "samples": int(index.shape[0]),
                                "examined": int(examined)}, finalized=True)
     record = _encode_record(header, 0, int(examined), index, arrays,
                             dict(sorted(rejected.items())))
     with _signals_deferred():
-        _write_atomic(path, [_encode_preamble(header), record])
+        _write_atomic(path, [_encode_preamble(header), record], exclusive=exclusive)
 
 
 def save_database(path: str | os.PathLike, header: dict, index: np.ndarray,
-                  arrays: Mapping[str, np.ndarray], rejected: Mapping[str, int]) -> None:
+                  arrays: Mapping[str, np.ndarray], rejected: Mapping[str, int],
+                  exclusive: bool = False) -> None:
     """Write a whole finished database at once, atomically (derived or bundled
     databases). Samples are sorted by index; ``fields`` is taken from ``arrays``;
-    ``header['examined']`` (default: last index + 1) is the sample range covered."""
+    ``header['examined']`` (default: last index + 1) is the sample range covered.
+    ``exclusive``: never replace a file at ``path`` (FileExistsError)."""
     index = np.asarray(index)
     if index.ndim != 1 or index.dtype.kind not in "iu":
         raise InputError(f"cannot save {path}: index must be a 1-d integer array")
@@ -640,7 +642,7 @@ def save_database(path: str | os.PathLike, header: dict, index: np.ndarray,
     examined = int(header.get("examined", int(index[-1]) + 1 if index.size else 0))
     head = {k: v for k, v in header.items() if k not in ("samples", "examined")}
     head["fields"] = fields_spec(sorted_arrays)
-    _write_final(Path(path), head, index, sorted_arrays, rejected, examined)
+    _write_final(Path(path), head, index, sorted_arrays, rejected, examined, exclusive)
 
 
 def contiguous_prefix(chunks: list[tuple[int, int, int]]) -> list[tuple[int, int, int]]:
@@ -748,7 +750,11 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
 
     if len(paths) < 2:
         raise InputError(f"a merge needs at least two databases, got {len(paths)}")
+    if Path(out).exists():
+        raise InputError(f"{out} exists; a merge writes a new database: choose another --out, "
+                         "or delete it first")
     dbs = [load_database(p, require_finalized=True) for p in paths]
+    _refuse_overlap(paths, dbs)
     first, p0 = dbs[0], Path(paths[0])
     names = sorted(set(first.arrays) - set(MERGE_FIELDS))
     prov0 = first.header.get("provenance") or {}
@@ -782,5 +788,38 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
               "provenance": {**{k: prov0[k] for k in same if k in prov0}, "parts": parts},
               "examined": int(sum(int(db.header.get("examined", db.n)) for db in dbs))}
     n = int(arrays["part"].shape[0])
-    save_database(out, header, np.arange(n, dtype=np.int64), arrays, rejected)
+    try:
+        save_database(out, header, np.arange(n, dtype=np.int64), arrays, rejected, exclusive=True)
+    except FileExistsError:
+        raise InputError(f"{out} appeared while merging; it is left as it is: choose another "
+                         "--out") from None
     return load_database(out)
+
+
+#: Header entries that identify the run a database's samples come from: two databases that
+#: share them hold the same samples (sample i depends only on the seed and i).
+_RUN_KEYS = ("kind", "worker", "config_class", "config", "seed", "model_hash")
+
+
+def _runs(header: dict) -> list[str]:
+    """The runs a database's samples come from: its own, or a merge's sources', recursively."""
+    parts = (header.get("provenance") or {}).get("parts") if header.get("kind") == "merged" else None
+    if isinstance(parts, list):
+        return [r for part in parts if isinstance(part, dict)
+                for r in _runs(part.get("header") or {})]
+    return [canonical_json({k: header.get(k) for k in _RUN_KEYS}).decode()]
+
+
+def _refuse_overlap(paths: list, dbs: list[Database]) -> None:
+    """Sources that hold the same samples (the same file, the same run twice, or a merge that
+    has one of them) would count each sample twice in every regression: refused."""
+    seen: dict[str, Any] = {}
+    for p, db in zip(paths, dbs, strict=True):
+        if db.header.get("seed") is None and db.header.get("kind") != "merged":
+            continue  # a database saved whole (bundled, derived): no run to compare
+        for run in set(_runs(db.header)):
+            if run in seen:
+                raise InputError(f"cannot merge {p} with {seen[run]}: both hold the samples of "
+                                 "the same run (same seed and parameters); merge databases of "
+                                 "other seeds")
+            seen[run] = p

@@ -317,6 +317,9 @@ def validate_merge(args: argparse.Namespace) -> None:
     if len(args.merge) < 2:
         raise InputError(f"--merge needs at least two databases, got {len(args.merge)}")
     out = _writable_file(args.out, "--out")
+    if out.exists() and not any(Path(s).resolve() == out.resolve() for s in args.merge):
+        raise InputError(f"--out {args.out} exists; --merge writes a new database: choose "
+                         "another --out, or delete it first")
     for src in args.merge:
         p = Path(src)
         if p.resolve() == out.resolve():
