@@ -7,6 +7,7 @@ import errno
 import hashlib
 import json
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from flapsim.core import interrupts
-from flapsim.core.errors import InputError, OutputError
+from flapsim.core.errors import DataFileError, InputError, OutputError
 
 
 def _temporary(target: Path, suffix: str | None) -> Path:
@@ -222,3 +223,32 @@ def file_sha256(path: str | Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+#: The largest data file (journal, table, path) read whole: a runaway file is refused in one
+#: line rather than read until memory runs out.
+MAX_READ_BYTES = 1 << 31
+
+
+def read_regular(path: str | os.PathLike, what: str, limit: int = MAX_READ_BYTES) -> bytes:
+    """The bytes of the regular file ``path``, read with a size cap. A device, FIFO or
+    folder is refused (reading ``/dev/zero`` grew without end until the system killed the
+    process), as is a file over ``limit`` bytes: a one-line :class:`DataFileError` naming it."""
+    p = Path(path)
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise DataFileError(f"{what} {p} does not exist") from None
+    except OSError as exc:
+        raise DataFileError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device, pipe or socket)"
+        raise DataFileError(f"{what} {p} is {kind}; name a file")
+    try:
+        with open(p, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise DataFileError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise DataFileError(f"{what} {p} is larger than {limit} bytes; is it the right file?")
+    return data

@@ -33,7 +33,7 @@ from flapsim.bird.training.train import run_header, same_entry, train
 from flapsim.core import environment
 from flapsim.core.errors import InputError
 from flapsim.core.parallel import ChunkExecutor, WorkerError, usable_cores
-from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path
+from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path, run_keys
 from flapsim.scenarios.registry import (
     EvalOptions,
     completion_interval,
@@ -131,7 +131,8 @@ def open_journal(json_path: str | None, runs: list[Run]) -> RunJournal | None:
     if not json_path or json_path == "-":
         return None
     # the packages too: the same runs flown with another numpy may end otherwise (environment)
-    return RunJournal(journal_path(json_path), fingerprint(runs, environment.tag()), len(runs))
+    tag = environment.tag()
+    return RunJournal(journal_path(json_path), run_keys(runs, tag), legacy=fingerprint(runs, tag))
 
 
 def execute(runs: list[Run], workers: int | None, backend: str = "local",
@@ -145,11 +146,19 @@ def execute(runs: list[Run], workers: int | None, backend: str = "local",
     out: list[dict | None] = [None] * n
     if journal is not None:
         done = journal.load()
+        for line in journal.skipped:
+            say(line)
         if journal.stale:
-            say(f"{journal.path} holds the runs of another eval (other options, databases, "
-                "path files or flapsim version): starting afresh")
+            say(f"{journal.path} also holds {len(journal.kept)} runs this eval does not ask for "
+                "(other scenarios, options, databases, path files or flapsim version): kept")
         for i, r in done.items():
+            if r.get("scenario") != runs[i][0]:  # a line edited to another index
+                say(f"{journal.path}: the run kept for {runs[i][0]} is of {r.get('scenario')!r}; "
+                    "it is flown again")
+                continue
             out[i] = r
+        done = {i: r for i, r in done.items() if out[i] is not None}
+        journal.resumed = len(done)
         if done:
             say(f"resuming: {len(done)} of {n} runs finished before, read from {journal.path}")
         journal.open(done)

@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> dict:
     for d in (plots, video):
         if d:
             Path(d).mkdir(exist_ok=True)
-    journal = runner.open_journal(args.json, runs)
+    journal = args._journal = runner.open_journal(args.json, runs)
     results = runner.execute(runs, args.workers, args.backend, args.address, journal, say=print)
     for r, (_, o) in zip(results, runs, strict=True):
         if args.starts > 1:
@@ -187,9 +187,12 @@ def print_spread(results: list[dict], n: int, jitter: float, seed: int) -> dict:
 
 
 def finished(args: argparse.Namespace) -> None:
-    """Called once ``--json PATH`` is written: the finished runs' journal goes."""
-    if args.json and args.json != "-" and not args.list:
-        journal_path(args.json).unlink(missing_ok=True)
+    """Called once ``--json PATH`` is written: the finished runs' journal goes, unless it
+    holds runs of other evals (never deleted unasked)."""
+    journal = getattr(args, "_journal", None)
+    if journal is not None and journal.finish():
+        print(f"{journal.path} is kept: it holds {len(journal.kept)} finished runs of another "
+              "eval (the same command as that eval resumes from them)")
 
 
 def resume_hint(args: argparse.Namespace) -> str:
@@ -330,7 +333,7 @@ def _table1(args: argparse.Namespace, opts: scenarios.EvalOptions) -> dict:
                                   backend=args.backend, address=args.address, say=print)
     runs, labels = runner.table1_runs(name, opts, dbs, sizes)
     runs = runner.lookahead_runs(runs, args.workers, args.backend)
-    journal = runner.open_journal(args.json, runs)
+    journal = args._journal = runner.open_journal(args.json, runs)
     results = runner.execute(runs, args.workers, args.backend, args.address, journal, say=print)
     print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}; "
           f"databases of sampling seed {seed}): per-wingbeat means")
