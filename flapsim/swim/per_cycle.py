@@ -43,7 +43,7 @@ from tqdm import tqdm
 
 from flapsim import __version__
 from flapsim.core.errors import DataFileError, InputError
-from flapsim.core.io import write_json
+from flapsim.core.io import read_regular, write_json
 from flapsim.core.parallel import ChunkExecutor, WorkerError
 from flapsim.swim.continuous import HandRules, calibration_settings
 from flapsim.swim.feedback import wrap_angle
@@ -487,27 +487,59 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
                       {s: a[order] for s, a in angles.items()}, offsets[order], level[order], prov)
 
 
-def _read_journal(path: Path, header: dict) -> dict[int, dict]:
-    """Finished jobs from a journal started with the same ``header`` (a torn last line
-    is ignored); a journal of another run is an error."""
+def _job_problem(r: object, jobs: list) -> str | None:
+    """Why ``r`` is not the result of one of ``jobs``, or None."""
+    if not isinstance(r, dict):
+        return "a result is not a JSON object"
+    i = r.get("i")
+    if type(i) is not int or not 0 <= i < len(jobs):
+        return f"result index {i!r} is not one of the {len(jobs)} cycles"
+    if [r.get("layers"), r.get("snapshot"), r.get("sequence"), r.get("weight")] != \
+            json.loads(json.dumps(list(jobs[i]))):
+        return f"result {i} is not of cycle {i}'s job"
+    for key in ("start", "end", "mean"):
+        v = r.get(key)
+        if not (isinstance(v, list) and v and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in v)):
+            return f"result {i} has no finite {key!r} numbers"
+    return None
+
+
+def _read_journal(path: Path, header: dict, jobs: list) -> dict[int, dict]:
+    """Finished jobs from a journal started with the same ``header``; a journal of another
+    run is an error. A line that holds no finished jobs (torn by an interruption, or edited)
+    is skipped with a warning naming the file and line: its jobs are run again."""
     done: dict[int, dict] = {}
-    lines = path.read_text().splitlines()
+    lines = read_regular(path, "calibration journal").decode("utf-8", "replace").splitlines()
     if not lines:
         return done
     try:
         first = json.loads(lines[0])
     except ValueError:
-        raise DataFileError(f"{path}: not a calibration journal; delete it to start over") from None
+        first = None
+    if not isinstance(first, dict) or "header" not in first:
+        raise DataFileError(f"{path}: not a calibration journal; delete it to start over")
     if first.get("header") != json.loads(json.dumps(header)):
         raise InputError(f"{path} belongs to another calibration (other stroke file, settings or "
                          "flapsim version); delete it to start over")
-    for line in lines[1:]:
+    for n, line in enumerate(lines[1:], start=2):
         try:
             rec = json.loads(line)
         except ValueError:
-            break  # torn by an interruption
+            rec, problem = None, "not JSON (torn by an interrupted write?)"
+        else:
+            results = rec.get("results") if isinstance(rec, dict) else None
+            problem = None if isinstance(results, list) else "no list of results"
+            for r in results if problem is None else ():
+                problem = _job_problem(r, jobs)
+                if problem:
+                    break
+        if problem is not None:
+            log.warning("%s line %d: %s; its cycles are run again", path, n, problem)
+            continue
         for r in rec["results"]:
-            done[int(r["i"])] = r
+            done[r["i"]] = r
     return done
 
 
@@ -536,7 +568,7 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
     journal = out_p.with_name(out_p.name + ".partial.jsonl")
 
     ident = {"flapsim_version": __version__, "config": asdict(config)}
-    done = _read_journal(journal, ident) if journal.is_file() else {}
+    done = _read_journal(journal, ident, jobs) if journal.exists() else {}
     todo = [i for i in range(len(jobs)) if i not in done]
     # contiguous runs of todo indices, chunk_size at most
     chunks = []
