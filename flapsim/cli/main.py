@@ -36,7 +36,7 @@ from flapsim import __version__
 from flapsim.core import environment, interrupts
 from flapsim.core.errors import FlapsimError, OutputError
 from flapsim.core.io import _jsonable, write_json
-from flapsim.core.validate import add_output_arg, check_outputs, guard_gl
+from flapsim.core.validate import add_output_arg, check_outputs, declare_options, guard_gl
 
 # Order is the order ``flapsim --help`` lists them in.
 COMMANDS: tuple[str, ...] = ("fly", "eval", "view", "train", "swim", "sweep", "modes", "creature",
@@ -94,6 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--seed", type=int, default=0,
                        help=getattr(module, "SEED_HELP", "random seed (default 0)"))
         module.add_arguments(p)
+        declare_options(p)
         p.set_defaults(_module=module)
     return parser
 

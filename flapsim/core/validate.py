@@ -96,6 +96,12 @@ RANGES: dict[str, Range] = {
     "soft_limit_deg": Range(0.0, 90.0, "deg"),
     "polygons": Range(1, 100_000, "polygons"),
     "cycles": Range(0.0, 100.0, "cycles", lo_open=True),
+    # a dove's start: pitched past vertical is no start; the tail bends within +-40 deg
+    # (its joint range, as training checks it)
+    "pitch_deg": Range(-90.0, 90.0, "deg"),
+    "roll_deg": Range(-90.0, 90.0, "deg"),
+    "tail_bias_deg": Range(-40.0, 40.0, "deg"),
+    "speed": Range(0.0, 30.0, "m/s"),
 }
 
 
@@ -255,6 +261,9 @@ def check_inputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
                 raise InputError(f"{spec.flag} {text} does not exist")
             if p.is_dir():
                 raise InputError(f"{spec.flag} {text} is a folder; name a file")
+            if not p.is_file():  # reading /dev/zero grew until the system killed flapsim
+                raise InputError(f"{spec.flag} {text} is not a regular file (a device, pipe or "
+                                 "socket); name a file")
             if not os.access(p, os.R_OK):
                 raise InputError(f"{spec.flag} {text}: not readable (permissions)")
             found.append((spec.flag, p.resolve()))
@@ -269,6 +278,9 @@ def check_output_path(flag: str, value: str, kinds: Sequence[str] | None = None)
         raise InputError(f"{flag} {value}: must end in {' or '.join(kinds)}")
     if p.is_dir() or str(value).endswith(os.sep):
         raise InputError(f"{flag} {value} is a folder; name a file in it")
+    if p.exists() and not p.is_file():  # a device (/dev/full) is no place for a result
+        raise InputError(f"{flag} {value} is not a regular file (a device, pipe or socket); "
+                         "name a file")
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.exists():
         raise InputError(f"{flag} {value}: folder {parent} does not exist (create it first)")
@@ -282,9 +294,27 @@ def check_output_path(flag: str, value: str, kinds: Sequence[str] | None = None)
     return p
 
 
+def declare_options(parser: argparse.ArgumentParser) -> None:
+    """Remember the parser's options (dest -> flag) for :func:`check_not_empty`; called once
+    every option is added."""
+    parser.set_defaults(_options=tuple((a.dest, a.option_strings[-1]) for a in parser._actions
+                                       if a.option_strings and a.dest != "help"))
+
+
+def check_not_empty(args: argparse.Namespace) -> None:
+    """An option given an empty value (``--sizes ""``) is refused, for every command: a
+    command would otherwise take it as "not given" and do something else than asked."""
+    for dest, flag in getattr(args, "_options", ()):
+        value = getattr(args, dest, None)
+        values = value if isinstance(value, list) else [value]
+        if any(isinstance(v, str) and not v.strip() for v in values):
+            raise InputError(f"{flag} is given an empty value; give one, or leave {flag} out")
+
+
 def check_outputs(args: argparse.Namespace) -> None:
     """Check every declared input and output of a parsed command line (see the module
     docstring); a one-line :class:`InputError` before any work."""
+    check_not_empty(args)
     inputs = check_inputs(args)
     seen: dict[Path, str] = {}
     renders = False

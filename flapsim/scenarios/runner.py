@@ -26,7 +26,7 @@ from flapsim import __version__
 from flapsim.bird.body.model import Dove
 from flapsim.bird.control.config import ControllerConfig
 from flapsim.bird.control.controller import bundled_database_path
-from flapsim.bird.control.database import load_database, read_header
+from flapsim.bird.control.database import load_database
 from flapsim.bird.tasks.config import PathControlConfig
 from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
 from flapsim.bird.training.train import run_header, same_entry, train
@@ -114,9 +114,11 @@ def lookahead_runs(runs: list[Run], workers: int | None, backend: str = "local")
 
 
 def check_database(db: str, feathers: str) -> None:
-    """A database of another dove is a one-line error before any worker starts (each run
-    would fail alike)."""
-    have, want = read_header(db).get("model_hash"), Dove.load(feathers=feathers).hash()
+    """A damaged database (the whole file is read: every chunk's CRC), an unfinished one, or
+    one of another dove is a one-line error before any worker starts (each run would fail
+    alike)."""
+    have = load_database(db, require_finalized=True).header.get("model_hash")
+    want = Dove.load(feathers=feathers).hash()
     if have != want:
         other = "modal" if feathers == "rigid" else "rigid"
         hint = (f"fly it with --feathers {other}" if have == Dove.load(feathers=other).hash()

@@ -359,6 +359,9 @@ def _read_bytes_checks(path: Path) -> None:
                             f"flapsim train --out {path}")
     if path.is_dir():
         raise DataFileError(f"database {path} is a folder; pass the database file")
+    if not path.is_file():  # reading a device (/dev/zero) grows without end
+        raise DataFileError(f"database {path} is not a regular file (a device, pipe or socket); "
+                            "pass the database file")
 
 
 def check_header(db_header: dict, path: Path | str, *, kind: str | None = None,

@@ -126,7 +126,43 @@ def _names(args: argparse.Namespace) -> list[str]:
     return out
 
 
+#: Options only --table1 reads (dest, flag, default).
+_TABLE1_ONLY = (("sizes", "--sizes", None), ("table1_seed", "--table1-seed", None),
+                ("cache", "--cache", "table1_dbs"))
+
+
+#: Options that mean nothing to --list (dest, flag, default).
+_NOT_FOR_LIST = (("scenario", "--scenario", None), ("path", "--path", None),
+                 ("table1", "--table1", False), ("db", "--db", None), ("plots", "--plots", None),
+                 ("video", "--video", None))
+
+
+def check_conflicts(args: argparse.Namespace) -> None:
+    """Options that the run asked for would ignore are refused before any work (--table1
+    trains for hours: it must not start on a command line it does not follow)."""
+    if args.list:
+        given = [flag for dest, flag, default in _NOT_FOR_LIST
+                 if getattr(args, dest, default) != default]
+        if given:
+            raise InputError(f"--list only lists the scenarios; drop {', '.join(given)}")
+        return
+    if args.table1:
+        if args.path:
+            raise InputError("--table1 flies one of the suite's scenarios with its own databases; "
+                             "drop --path (or --table1)")
+        if args.db:
+            raise InputError("--table1 trains and flies its own databases; drop --db")
+        if args.starts != 1:
+            raise InputError("--table1 flies one start per database; drop --starts")
+        return
+    given = [flag for dest, flag, default in _TABLE1_ONLY if getattr(args, dest, default) != default]
+    if given:
+        raise InputError(f"{', '.join(given)} {'is' if len(given) == 1 else 'are'} for --table1; "
+                         "add --table1, or drop them")
+
+
 def run(args: argparse.Namespace) -> dict:
+    check_conflicts(args)
     if args.list:
         return _list()
     if args.workers is not None and not (1 <= args.workers <= 4096):

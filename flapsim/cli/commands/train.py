@@ -107,6 +107,9 @@ def _writable_file(path: str, flag: str) -> Path:
     p = Path(path)
     if p.is_dir():
         raise InputError(f"{flag} {path} is a folder; name a file")
+    if p.exists() and not p.is_file():  # a device (/dev/full) is no database
+        raise InputError(f"{flag} {path} is not a regular file (a device, pipe or socket); "
+                         "name a file")
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise InputError(f"{flag} {path}: folder {parent} does not exist (create it first)")

@@ -1,0 +1,83 @@
+"""Bad input refused in one line before any work: a damaged database before the workers
+start, conflicting or empty options, out-of-range flight starts, devices as files."""
+
+import shutil
+
+import pytest
+
+from flapsim.bird.control.controller import bundled_database_path
+from flapsim.cli.main import main
+
+
+def _one_line(capsys, command):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"flapsim {command}: error: "), err
+    return err[0]
+
+
+def test_eval_verifies_the_whole_database_before_any_run(tmp_path, capsys):
+    """One flipped byte in the samples: every run 'failed' (exit 1) after the workers had
+    started; now the CRCs are read first."""
+    db = tmp_path / "flipped.db"
+    shutil.copy(bundled_database_path("rigid"), db)
+    data = bytearray(db.read_bytes())
+    data[len(data) // 2] ^= 0x01  # in the samples, far past the header
+    db.write_bytes(bytes(data))
+    assert main(["eval", "--db", str(db), "--scenario", "figure8-level", "--quick",
+                 "--workers", "1"]) == 2
+    msg = _one_line(capsys, "eval")
+    assert str(db) in msg and "CRC" in msg
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--pitch-deg", "nan"], "argument --pitch-deg: must be -90..90 deg, got nan"),
+    (["--tail-bias-deg", "1e9"], "argument --tail-bias-deg: must be -40..40 deg, got 1e9"),
+    (["--roll-deg", "inf"], "argument --roll-deg: must be -90..90 deg"),
+    (["--speed", "nan"], "argument --speed: must be 0..30 m/s"),
+])
+def test_fly_range_checks_its_start(capsys, args, fragment):
+    """These flew and were reported as "the simulation diverged"; they are input errors."""
+    assert main(["fly", *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0], err
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["eval", "--table1", "--path", "p.csv"], "drop --path"),
+    (["eval", "--table1", "--sizes", ""], "--sizes is given an empty value"),
+    (["eval", "--sizes", "100,200"], "--sizes is for --table1"),
+    (["eval", "--table1-seed", "3", "--cache", "c"], "--table1-seed, --cache are for --table1"),
+    (["eval", "--list", "--scenario", "forest"], "--list only lists"),
+    (["eval", "--scenario", ""], "--scenario is given an empty value"),
+    (["fly", "--table", " "], "--table is given an empty value"),
+    (["train", "--samples", "8", "--out", ""], "--out is given an empty value"),
+    (["swim", "--json", ""], "--json is given an empty value"),
+])
+def test_conflicting_or_empty_options_are_refused_before_any_work(tmp_path, capsys, monkeypatch,
+                                                                  args, fragment):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.csv").write_text("x,y,z\n0,0,0\n10,0,0\n")
+    assert main(args) == 2
+    msg = _one_line(capsys, args[0])
+    assert fragment in msg
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv"]  # nothing trained or written
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["fly", "--path", "/dev/zero"], "--path /dev/zero is not a regular file"),
+    (["list", "--json", "/dev/full"], "--json /dev/full is not a regular file"),
+    (["eval", "--db", "/dev/zero"], "--db /dev/zero is not a regular file"),
+    (["train", "--samples", "8", "--out", "/dev/full"], "--out /dev/full is not a regular file"),
+])
+def test_devices_are_no_files(capsys, args, fragment):
+    """Reading /dev/zero as a path grew to 24 GB until the system killed flapsim."""
+    assert main(args) == 2
+    assert fragment in _one_line(capsys, args[0])
+
+
+def test_a_database_loader_refuses_a_device():
+    from flapsim.bird.control.database import load_database
+    from flapsim.core.errors import DataFileError
+
+    with pytest.raises(DataFileError, match="not a regular file"):
+        load_database("/dev/zero")
