@@ -52,7 +52,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="write a chase-camera video (.mp4 or .gif)")
     add_output_arg(p, "--out", kinds=(".npz",), help="write the trajectory (.npz)")
     p.add_argument("--speed", type=quantity("speed"), default=7.0, help="initial speed, m/s (default 7)")
-    p.add_argument("--pitch-deg", type=quantity("pitch_deg"), default=0.0, help="initial trunk pitch (default 0)")
+    p.add_argument("--pitch-deg", type=quantity("pitch_deg"), default=0.0,
+                   help="initial trunk pitch (default 0)")
     p.add_argument("--tail-bias-deg", type=quantity("tail_bias_deg"), default=17.0,
                    help="tail bend added to the reference wingbeat (paper: 17)")
     p.add_argument("--table", default=None,
