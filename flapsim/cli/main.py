@@ -166,9 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        hint = "; run the same command again to resume" if args.command == "train" else ""
-        if hasattr(args._module, "resume_hint"):
-            hint = args._module.resume_hint(args)
+        hint = args._module.resume_hint(args) if hasattr(args._module, "resume_hint") else ""
         print(f"flapsim {args.command}: interrupted{hint}", file=sys.stderr)
         return 130
     except Terminated:

@@ -699,7 +699,8 @@ def _finalize_locked(path: Path, data: bytes, n_samples: int | None, float32: bo
     if index.size and index[-1] >= examined:  # only possible with a gap: never past the prefix
         raise InputError(f"{path}: samples beyond the complete chunks")
     arrays = {k: v[:keep] for k, v in db.arrays.items()}
-    fin = {k: v for k, v in header.items() if k not in ("samples", "examined")}
+    # what the journal alone needs (the size asked, for a resume) is not the database's
+    fin = {k: v for k, v in header.items() if k not in ("samples", "examined", "samples_asked")}
     if float32:
         arrays = {k: v.astype("<f4") if v.dtype.kind == "f" else v for k, v in arrays.items()}
         fin["fields"] = fields_spec(arrays)
