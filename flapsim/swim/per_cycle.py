@@ -166,6 +166,11 @@ class CycleTable:
         bad = set(angles) - set(CYCLE_SEQUENCES)
         if bad:
             raise DataFileError(f"{where}: unknown sequences {sorted(bad)}")
+        for name, a in (("speeds_m_s", speeds), ("weights", weights), ("cycle_start_offset_deg",
+                        offsets), ("level_pitch_roll_deg", level), *angles.items()):
+            if not np.all(np.isfinite(a)):  # a NaN table was taken, and the swimmer never steered
+                raise DataFileError(f"{where}: {name} holds non-finite numbers (NaN or infinity); "
+                                    "recalibrate (flapsim swim --calibrate)")
         return cls(str(d.get("stroke", "")), speeds, weights, angles, offsets, level,
                    dict(d.get("provenance", {})))
 
