@@ -82,10 +82,33 @@ def attitude(data: mujoco.MjData, trunk: int, forward_axis: int, head: int | Non
                      math.asin(float(np.clip(left[2], -1, 1)))])
 
 
-def table_path(stroke: Stroke) -> Path:
-    """Where a stroke's calibration table lives: next to its file."""
+def _bundled(p: Path) -> bool:
+    """Whether ``p`` lies in the package's own stroke folder (read-only once installed)."""
+    try:
+        return p.resolve().is_relative_to(STROKE_DIR.resolve())
+    except OSError:
+        return False
+
+
+def user_table_dir() -> Path:
+    """Where calibrations of the bundled strokes are written: the package is read-only
+    (``$FLAPSIM_DATA``, else ``$XDG_DATA_HOME/flapsim``, else ``~/.local/share/flapsim``)."""
+    base = os.environ.get("FLAPSIM_DATA") or os.path.join(
+        os.environ.get("XDG_DATA_HOME") or os.path.join(os.path.expanduser("~"), ".local", "share"),
+        "flapsim")
+    return Path(base) / "tables"
+
+
+def table_path(stroke: Stroke, for_writing: bool = False) -> Path:
+    """Where a stroke's calibration table lives: next to its file; for a bundled stroke, a
+    calibration of the user's (:func:`user_table_dir`) when there is one, else the bundled
+    table. ``for_writing``: where a new calibration goes (never into the package)."""
     p = Path(stroke.path) if stroke.path else STROKE_DIR / f"{stroke.name}.toml"
-    return p.with_name(p.stem + ".cycle.json")
+    beside = p.with_name(p.stem + ".cycle.json")
+    if not _bundled(p):
+        return beside
+    mine = user_table_dir() / beside.name
+    return mine if for_writing or mine.is_file() else beside
 
 
 def stroke_hash(stroke: Stroke) -> str:
@@ -565,7 +588,9 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
         raise InputError("snapshot cycles must be whole numbers >= 0")
     if not weights or any(not (0 < w <= 1) for w in weights):
         raise InputError("calibration weights must be in (0, 1]")
-    out_p = Path(out) if out is not None else table_path(st)
+    out_p = Path(out) if out is not None else table_path(st, for_writing=True)
+    if out is None:
+        out_p.parent.mkdir(parents=True, exist_ok=True)
     config = CalibrationConfig(str(Path(st.path).resolve()), stroke_hash(st),
                                tuple(int(c) for c in sorted(set(snapshot_cycles))),
                                tuple(float(w) for w in sorted(set(weights))), dict(params or {}))

@@ -3,6 +3,7 @@ data file's non-finite numbers are a one-line error naming the file and the entr
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 
@@ -30,3 +31,23 @@ def test_a_table_of_nan_is_refused(tmp_path, entry):
     with pytest.raises(DataFileError, match="non-finite") as e:
         load_table(st, bad)
     assert str(bad) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_calibrating_a_bundled_stroke_writes_to_the_users_folder(tmp_path, monkeypatch):
+    """`swim --calibrate --stroke crawl` rewrote the table inside the installed package."""
+    from flapsim.swim.per_cycle import STROKE_DIR
+
+    monkeypatch.setenv("FLAPSIM_DATA", str(tmp_path / "data"))
+    st = load_stroke("crawl")
+    bundled = table_path(st)
+    assert bundled.parent == STROKE_DIR and bundled.is_file()
+    mine = table_path(st, for_writing=True)
+    assert mine == tmp_path / "data" / "tables" / "crawl.cycle.json"
+    assert table_path(st) == bundled  # until the user calibrates, the bundled table is read
+    mine.parent.mkdir(parents=True)
+    mine.write_text(bundled.read_text())
+    assert table_path(st) == mine and load_table(st).speeds.size  # then the user's
+    # a stroke file of the user's keeps its table beside it
+    own = tmp_path / "own.toml"
+    own.write_text(Path(st.path).read_text())
+    assert table_path(load_stroke(str(own)), for_writing=True) == tmp_path / "own.cycle.json"
