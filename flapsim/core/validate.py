@@ -375,6 +375,29 @@ def gl_problem(value: str | None = None,
     return None
 
 
+def display_problem(display: str | None = None) -> str | None:
+    """Why the X display ``display`` (default ``$DISPLAY``) cannot be opened, or None (also
+    where there is no libX11 to ask). Asked before the viewer starts: GLFW's own failure
+    printed MuJoCo's error, exited 1 and left ``MUJOCO_LOG.TXT`` in the working folder."""
+    name = os.environ.get("DISPLAY", "") if display is None else display
+    lib = ctypes.util.find_library("X11")
+    if not name or lib is None:
+        return None
+    try:
+        x11 = ctypes.CDLL(lib)
+    except OSError:
+        return None
+    x11.XOpenDisplay.restype = ctypes.c_void_p
+    x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    handle = x11.XOpenDisplay(name.encode())
+    if not handle:
+        return (f"cannot open display {name} (no X server answers there): start one (Xvfb "
+                f"{name} &), or render offscreen with --video")
+    x11.XCloseDisplay(handle)
+    return None
+
+
 def guard_gl() -> None:
     """Called by the CLI before mujoco is imported: an unusable ``MUJOCO_GL`` is noted
     (for :func:`require_gl`) and rendering disabled, so that everything else still works.

@@ -29,6 +29,7 @@ import mujoco.viewer
 import numpy as np
 
 from flapsim.core.errors import InputError
+from flapsim.core.validate import display_problem
 
 #: GLFW key codes (what MuJoCo's key callback receives); keys the viewer itself leaves alone
 KEY_INSERT, KEY_DELETE, KEY_RIGHT, KEY_LEFT, KEY_DOWN, KEY_UP = 260, 261, 262, 263, 264, 265
@@ -52,6 +53,9 @@ def check_display() -> None:
                          "MUJOCO_GL=glfw and a display (or under Xvfb)")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise InputError("the viewer needs a display: set DISPLAY (e.g. run under Xvfb)")
+    problem = None if os.environ.get("WAYLAND_DISPLAY") else display_problem()
+    if problem:
+        raise InputError(problem)
 
 
 @dataclass(frozen=True)

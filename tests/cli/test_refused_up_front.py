@@ -81,3 +81,19 @@ def test_a_database_loader_refuses_a_device():
 
     with pytest.raises(DataFileError, match="not a regular file"):
         load_database("/dev/zero")
+
+
+@pytest.mark.parametrize("args", [["view"], ["swim", "--viewer"]])
+def test_a_viewer_without_a_display_is_one_line_and_no_log(tmp_path, monkeypatch, capsys, args):
+    """GLFW's failure printed MuJoCo's error, exited 1 and left MUJOCO_LOG.TXT behind."""
+    from flapsim.core.validate import display_problem
+
+    display = ":77"
+    assert display_problem(display) is not None  # no X server there on this machine
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("DISPLAY", display)
+    monkeypatch.setenv("MUJOCO_GL", "glfw")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(args) == 2
+    assert f"cannot open display {display}" in _one_line(capsys, args[0])
+    assert list(tmp_path.iterdir()) == []
