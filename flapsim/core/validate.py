@@ -41,6 +41,7 @@ import importlib.util
 import math
 import os
 import platform
+import socket
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -373,6 +374,25 @@ def gl_problem(value: str | None = None,
         return (f"MUJOCO_GL={v or '(unset)'} means GLFW, whose Python package is not installed; "
                 "use MUJOCO_GL=egl for offscreen rendering")
     return None
+
+
+def address_problem(address: str, timeout_s: float = 5.0) -> str | None:
+    """Why the Ray cluster at ``address`` (``HOST:PORT``, ``ray://HOST:PORT``; ``auto`` and
+    ``local`` are Ray's own) cannot be reached within ``timeout_s``, or None. Ray itself
+    retried an unreachable address for minutes, printing only its warnings."""
+    if address in ("auto", "local"):
+        return None
+    hostport = address.split("://", 1)[1] if "://" in address else address
+    host, _, port = hostport.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        return f"--address {address!r} must be HOST:PORT (or ray://HOST:PORT, auto, local)"
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            return None
+    except OSError as exc:
+        why = exc.strerror or str(exc) or "timed out"
+        return (f"cannot reach the Ray cluster at {address} ({why}, within {timeout_s:g} s): "
+                "start it (ray start --head) or check --address")
 
 
 def display_problem(display: str | None = None) -> str | None:

@@ -97,3 +97,24 @@ def test_a_viewer_without_a_display_is_one_line_and_no_log(tmp_path, monkeypatch
     assert main(args) == 2
     assert f"cannot open display {display}" in _one_line(capsys, args[0])
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_unreachable_ray_address_is_one_line_quickly(tmp_path, capsys):
+    """`--backend ray --address 127.0.0.1:1` hung for minutes printing only Ray's warnings."""
+    import time
+
+    from flapsim.core.validate import address_problem
+
+    t0 = time.monotonic()
+    assert "cannot reach the Ray cluster at 127.0.0.1:1" in address_problem("127.0.0.1:1")
+    assert "must be HOST:PORT" in address_problem("nowhere")
+    assert address_problem("auto") is None
+    # an address nothing answers (TEST-NET-1, never routed) times out
+    assert "cannot reach" in address_problem("192.0.2.1:6379", timeout_s=0.5)
+    assert time.monotonic() - t0 < 10
+    pytest.importorskip("ray")
+    for args in (["train", "--samples", "8", "--out", str(tmp_path / "a.db")],
+                 ["eval", "--scenario", "wind-steady", "--quick"]):
+        assert main([*args, "--backend", "ray", "--address", "127.0.0.1:1"]) == 2
+        assert "cannot reach the Ray cluster at 127.0.0.1:1" in _one_line(capsys, args[0])
+    assert list(tmp_path.iterdir()) == []

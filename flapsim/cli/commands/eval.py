@@ -13,7 +13,7 @@ from flapsim.bird.tasks.path_control import load_path
 from flapsim.cli.options import add_controller_arguments, controller_options, writable_dir
 from flapsim.core.errors import InputError
 from flapsim.core.parallel import usable_cores
-from flapsim.core.validate import add_input_arg, require_gl
+from flapsim.core.validate import add_input_arg, address_problem, require_gl
 from flapsim.scenarios import runner
 from flapsim.scenarios.journal import journal_path
 from flapsim.scenarios.runner import TABLE1_K_PERCENT, TABLE1_SCENARIO, TABLE1_SIZES
@@ -163,6 +163,12 @@ def check_conflicts(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> dict:
     check_conflicts(args)
+    if args.address is not None:
+        if args.backend != "ray":
+            raise InputError("--address is only for --backend ray")
+        problem = address_problem(args.address)
+        if problem:
+            raise InputError(problem)
     if args.list:
         return _list()
     if args.workers is not None and not (1 <= args.workers <= 4096):

@@ -19,6 +19,7 @@ from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
 from flapsim.bird.training.train import check_out, train
 from flapsim.core.errors import InputError
 from flapsim.core.io import write_problem
+from flapsim.core.validate import address_problem
 from flapsim.fluid.coefficients import get_table
 
 HELP = ("train the dove's controller database: sample wingbeats in parallel (local processes "
@@ -145,6 +146,9 @@ def validate(args: argparse.Namespace) -> None:
             import ray  # noqa: F401
         except ImportError:
             raise InputError("--backend ray needs Ray: pip install 'flapsim[cluster]'") from None
+        problem = address_problem(args.address) if args.address else None
+        if problem:
+            raise InputError(problem)
     out = _writable_file(args.out, "--out")
     if args.json:
         js = _writable_file(args.json, "--json")
