@@ -30,6 +30,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.spatial import cKDTree
 
 from flapsim.bird.control.controller import start_cruise
 from flapsim.bird.control.targets import GRAVITY, Trim, target_state
@@ -135,8 +136,6 @@ class FlightPath:
         once: the cost grows with the log of the path's length, not with the length)."""
         tree = self.__dict__.get("_tree")
         if tree is None:
-            from scipy.spatial import cKDTree
-
             tree = cKDTree(self._pts)
             object.__setattr__(self, "_tree", tree)
         q = np.asarray(p, float)
