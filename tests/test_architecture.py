@@ -13,8 +13,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "flapsim"
 
-#: Packages that may be imported inside a function: optional, or heavy and needed by one path.
-LAZY_ALLOWED = {"matplotlib", "pyvista", "imageio", "ray", "vtk"}
+#: Packages that may be imported inside a function: optional, or heavy and needed by one path
+#: (mpl_toolkits ships with matplotlib: its 3D axes).
+LAZY_ALLOWED = {"matplotlib", "mpl_toolkits", "pyvista", "imageio", "ray", "vtk"}
 
 
 def _modules() -> dict[str, Path]:

@@ -18,7 +18,8 @@ from flapsim.bird.control.config import ControllerConfig
 from flapsim.bird.tasks.config import PathControlConfig, load_control_config
 from flapsim.core.errors import InputError
 from flapsim.core.io import write_problem
-from flapsim.core.validate import add_input_arg
+from flapsim.core.validate import add_input_arg, quantity
+from flapsim.render.video import CAMERAS
 
 
 def add_controller_arguments(p: argparse.ArgumentParser) -> None:
@@ -82,3 +83,33 @@ def writable_dir(flag: str, value: str | None) -> str | None:
     if problem is not None:
         raise InputError(f"{flag} {value}: cannot create a file in {parent} ({problem})")
     return str(p)
+
+
+def add_video_arguments(p: argparse.ArgumentParser, slowmo_default: str = "1") -> None:
+    """``--fps``, ``--size``, ``--slowmo`` and ``--camera`` of the dove's videos."""
+    p.add_argument("--fps", type=quantity("fps"), default=60.0,
+                   help="video frames per second (default 60: ~6 frames per wingbeat)")
+    p.add_argument("--size", default="640x480", help="video size WxH (default 640x480)")
+    p.add_argument("--slowmo", type=float, default=None, metavar="F",
+                   help=f"slow motion: the video lasts F times the flight (default {slowmo_default}); "
+                        "e.g. 8 shows ~50 frames per wingbeat")
+    p.add_argument("--camera", choices=CAMERAS, default="chase",
+                   help="chase (default: behind the bird along its heading, above it, the path "
+                        "ahead in view), side, top or orbit")
+
+
+def video_options(args: argparse.Namespace) -> dict:
+    """The keyword arguments of :func:`flapsim.bird.flight.video.dove_video` from
+    :func:`add_video_arguments`' options."""
+    return {"slowmo": args.slowmo, "camera": args.camera}
+
+
+def video_size(args: argparse.Namespace) -> tuple[int, int]:
+    """``--size WxH`` as (width, height) pixels, checked."""
+    try:
+        width, height = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--size must look like 640x480, got {args.size!r}") from None
+    if not (16 <= width <= 4096 and 16 <= height <= 4096):
+        raise InputError(f"--size must be 16..4096 pixels each way, got {args.size!r}")
+    return width, height

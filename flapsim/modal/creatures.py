@@ -39,6 +39,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -49,6 +50,7 @@ from flapsim.core.errors import InputError, SimulationError
 from flapsim.core.loading import load_model
 from flapsim.modal.analysis import ModalAnalysis, analyze
 from flapsim.modal.dynamic import ModalController, two_mode_drives
+from flapsim.modal.legs import find_root
 
 log = logging.getLogger(__name__)
 
@@ -89,15 +91,51 @@ CREATURES: dict[str, CreatureSpec] = {
 }
 
 
+#: A user's model: its two lowest modes at the lower one's natural frequency, each
+#: moving its most-moving joint by 0.2 rad (ours: between the loop's 0.3 and the linear
+#: creature's 0.1, small enough to stay linear-ish, large enough to move).
+USER_GAIT = CreatureGait(amplitude_rad=0.2, freq_hz=None)
+
+
+def is_model_file(name: str) -> bool:
+    """True when ``name`` names an MJCF file rather than a bundled creature."""
+    return name not in CREATURES and (name.endswith(".xml") or Path(name).exists())
+
+
 def creature_spec(name: str) -> CreatureSpec:
-    if name not in CREATURES:
-        raise InputError(f"unknown creature {name!r}; choose one of {', '.join(CREATURES)}")
-    return CREATURES[name]
+    """A bundled creature, or any model file (the paper's dynamic creatures: driven by
+    its two lowest modes; body length its longest horizontal extent)."""
+    if name in CREATURES:
+        return CREATURES[name]
+    if is_model_file(name):
+        if not Path(name).exists():
+            raise InputError(f"model file {name!r} does not exist")
+        return CreatureSpec(str(name), False, USER_GAIT)
+    raise InputError(f"unknown creature {name!r}; choose one of {', '.join(CREATURES)} "
+                     "or give an MJCF file with actuated joints")
 
 
 def load_creature(name: str) -> mujoco.MjModel:
-    """Compile a bundled creature model."""
+    """Compile a bundled creature model (or a model file)."""
+    if name not in CREATURES and is_model_file(name):
+        creature_spec(name)
+        return load_model(Path(name))
     return load_model(asset_path("creatures", creature_spec(name).filename))
+
+
+def extent_length(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Longest horizontal extent of the model's geometry (world geoms aside), m."""
+    pts = []
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == 0:
+            continue
+        r = float(model.geom_rbound[g])
+        c = data.geom_xpos[g]
+        pts += [c[:2] - r, c[:2] + r]
+    if not pts:
+        raise InputError("the model has no geometry on its bodies: cannot measure its length")
+    p = np.array(pts)
+    return float(np.max(p.max(axis=0) - p.min(axis=0)))
 
 
 def body_length(model: mujoco.MjModel, closed_loop: bool) -> float:
@@ -134,6 +172,7 @@ def run_creature(
     ``model`` replaces the bundled model (a variant of the same creature).
     """
     spec = creature_spec(name)
+    user = name not in CREATURES
     gait = gait or spec.gait
     if not (math.isfinite(seconds) and seconds > 0):
         raise InputError(f"--seconds must be a positive number, got {seconds}")
@@ -152,7 +191,8 @@ def run_creature(
     data.qpos[:] = analysis.rest_qpos
     mujoco.mj_forward(model, data)
     dt = model.opt.timestep
-    root = 1  # the root plate; subtree_com of it is the creature's centre of mass
+    # The root's subtree com is the creature's centre of mass (the loop's root plate).
+    root = find_root(model) if user else 1
 
     n_settle = int(round(gait.settle_s / dt))
     for _ in range(n_settle):
@@ -183,17 +223,18 @@ def run_creature(
     _check_stable(model, data, name)
     mujoco.mj_forward(model, data)
     end_com = data.subtree_com[root].copy()
-    length = body_length(model, spec.closed_loop)
+    length = extent_length(model, rest_data(model, analysis)) if user else body_length(
+        model, spec.closed_loop)
     dx = float(end_com[0] - start_com[0])
     horiz = float(np.hypot(*(end_com[:2] - start_com[:2])))
     # Ring plane tilt: the loop's hinge axis (body y) should stay horizontal. The linear
     # creature rolls about its own length, so a root axis tilt means nothing there.
     axis_y = data.xmat[root].reshape(3, 3)[:, 1]
     tilt_deg = (math.degrees(math.asin(min(abs(float(axis_y[2])), 1.0)))
-                if spec.closed_loop else None)
+                if spec.closed_loop and not user else None)
     result = {
-        "creature": name,
-        "model_file": spec.filename,
+        "creature": Path(name).stem if user else name,
+        "model_file": str(Path(name).resolve()) if user else spec.filename,
         "nv": model.nv,
         "dofs_after_constraints": analysis.n_modes,
         "modes_driven": [d.mode for d in drives],
@@ -204,7 +245,8 @@ def run_creature(
         "simulated_s": n_steps * dt,
         "settle_s": n_settle * dt,
         "body_length_m": length,
-        "body_length_definition": "perimeter / pi" if spec.closed_loop else "chain length",
+        "body_length_definition": ("longest horizontal extent at rest" if user else
+                                   "perimeter / pi" if spec.closed_loop else "chain length"),
         "distance_x_m": dx,
         "distance_x_body_lengths": dx / length,
         "distance_horizontal_m": horiz,
@@ -219,6 +261,13 @@ def run_creature(
     if record_every:
         result["_frames"] = np.array(frames)
     return result
+
+
+def rest_data(model: mujoco.MjModel, analysis: ModalAnalysis) -> mujoco.MjData:
+    d = mujoco.MjData(model)
+    d.qpos[:] = analysis.rest_qpos
+    mujoco.mj_forward(model, d)
+    return d
 
 
 def _check_stable(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> None:

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import mujoco
@@ -49,10 +49,12 @@ from flapsim.modal.animate import Component
 from flapsim.modal.heuristics import (
     CATEGORY_NAMES,
     HeuristicParams,
+    Labels,
     Selection,
     rigid_component,
     score_modes,
 )
+from flapsim.modal.own import GaitFile
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +78,12 @@ class GaitTerm:
     """Posture offset along the same shape."""
     sign: float = 1.0
     """+1: the left side leads (the heuristics' sign); -1: the right side."""
+    distinct: bool = True
+    """False for a companion term (a vertical foot motion C or E, the gallop's H): when
+    its top mode is already used by an earlier term, that mode stands for it. A
+    distinct term whose top mode an earlier term plays at another phase or sign takes
+    the next best mode of its category instead (or the gait is refused): merging it
+    would silently turn the gait into another (an amble into a trot)."""
 
 
 @dataclass(frozen=True)
@@ -105,8 +113,9 @@ class Gait:
     """'biped' or 'quadruped' (which labels the heuristics need)."""
 
 
-def _t(cat, amp, ph, f=2.0, beta=0.0, sign=1.0) -> GaitTerm:
-    return GaitTerm(cat, amp, ph, f, beta, sign)
+def _t(cat, amp, ph, f=2.0, beta=0.0, sign=1.0, distinct=None) -> GaitTerm:
+    return GaitTerm(cat, amp, ph, f, beta, sign,
+                    cat not in ("C", "E") if distinct is None else distinct)
 
 
 WALK = (_t("B", 0.5, 0), _t("A", 0.76, 90), _t("C", 0.5, 90))
@@ -126,7 +135,7 @@ GAITS: dict[str, Gait] = {
              description="lateral four-beat: each front foot a quarter cycle after its hind foot",
              kind="quadruped"),
         Gait("gallop", "dog", None,
-             (_t("bounce", 0.2, 0), _t("P", 0.3, 90), _t("H", 0.3, 0), _t("B", 0.2, 90),
+             (_t("bounce", 0.2, 0), _t("P", 0.3, 90), _t("H", 0.3, 0, distinct=False), _t("B", 0.2, 90),
               _t("G", 0.2, 90, sign=-1)),
              "by hand", "a4=.2 g0, a6=1 g90, a8=1 g0, a10=.2 g90, a11=.7 g90, a22=1 g90, 2 Hz",
              description="bound (P) and gather/stretch (H) in quadrature, a small left lead",
@@ -194,11 +203,48 @@ class GaitPlan:
     merged: dict[str, int]
     """Category -> mode for terms whose mode an earlier term already used."""
     constraints: tuple[ExtraConstraint, ...]
+    substituted: dict[str, dict] = field(default_factory=dict)
+    """Category -> {top_mode, mode, relative}: a distinct term whose top mode an earlier
+    term already played at another phase or sign, and the next best mode it took."""
 
     def rejected(self) -> dict[int, str]:
         """Candidate modes this gait does not use -> why the heuristics passed them over."""
         used = {c["mode"] for c in self.chosen}
         return {m: why for m, why in self.selection.rejected.items() if m not in used}
+
+
+_FEATURE_WHAT = {
+    "A": "alternating knee bend", "B": "fore-aft foot motion", "C": "vertical foot motion",
+    "D": "knee bend", "E": "vertical foot motion", "F": "front-leg bend",
+    "G": "fore-aft front-foot motion", "H": "fore-aft foot motion", "P": "vertical foot motion",
+    "J": "sideways foot motion", "K": "vertical hand motion",
+}
+
+
+def _missing_reason(sel: Selection, cat: str, kind: str) -> str:
+    """Why no mode serves ``cat``: a label is absent, or no low mode moves the feature."""
+    if cat not in sel.functionals:
+        parts = {"F": "front-leg elbows", "G": "front feet", "H": "front feet",
+                 "P": "front feet", "K": "hands"}.get(cat, "feet and knees")
+        return (f"{cat} ({CATEGORY_NAMES[cat]}) needs {parts}, which this {kind}'s labels "
+                "do not give: label them (a TOML label file) or pick another gait")
+    if cat in ("C", "E", "P"):
+        return (f"{cat} ({CATEGORY_NAMES[cat]}): no low mode moves the feet vertically; "
+                "straight legs give the feet no first-order vertical motion: flex the knees "
+                "in the rest pose (springref, or `flapsim animate MODEL.xml` proposes it)")
+    return (f"{cat} ({CATEGORY_NAMES[cat]}): no low mode produces any "
+            f"{_FEATURE_WHAT.get(cat, 'motion')} at the rest pose; check the joints' axes "
+            "and stiffness (a joint without stiffness has no mode)")
+
+
+def _same_motion(prev: dict, eff_sign: float, phase_deg: float, freq: float) -> bool:
+    """Would a term play the same mode exactly as ``prev`` does (up to a half-cycle flip)?"""
+    if not math.isclose(prev["freq_hz"], freq):
+        return False
+    lag = (phase_deg - prev["phase_deg"]) % 360.0
+    if eff_sign == prev["_eff_sign"]:
+        return min(lag, 360.0 - lag) < 1e-6
+    return abs(lag - 180.0) < 1e-6
 
 
 def plan_gait(
@@ -209,28 +255,39 @@ def plan_gait(
     amplitude_scale: float = 1.0,
     freq_hz: float | None = None,
     params: HeuristicParams | None = None,
+    labels: Labels | None = None,
+    rest_qpos: np.ndarray | None = None,
+    joint_stiffness: dict[str, float] | None = None,
 ) -> GaitPlan:
-    """Analyse ``model`` about the gait's rest pose and pick its modes by heuristics."""
+    """Analyse ``model`` about the gait's rest pose and pick its modes by heuristics.
+
+    ``labels`` replaces the naming convention (a tree-found leg map), ``rest_qpos`` the
+    rest pose, ``joint_stiffness`` (joint name -> N m/rad) some joints' stiffness.
+    """
     keyframe = g.keyframe
     if keyframe is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe) < 0:
         log.info("model has no keyframe %r: using its spring reference as the rest pose", keyframe)
         keyframe = None
     constraints = build_constraints(g.constraints)
-    analysis = analyze(model, keyframe=keyframe, constraints=constraints, stiffness=g.stiffness,
-                       stiffness_scale=stiffness_scale)
+    stiffness: float | dict[str, float] | None = g.stiffness
+    if joint_stiffness:
+        if g.stiffness is not None:
+            raise InputError(f"gait {g.name!r} sets a uniform stiffness; per-joint stiffness "
+                             "does not combine with it")
+        stiffness = dict(joint_stiffness)
+    analysis = analyze(model, keyframe=keyframe, qpos=rest_qpos, constraints=constraints,
+                       stiffness=stiffness, stiffness_scale=stiffness_scale)
     wanted = sorted({t.category for t in g.terms if t.category != "bounce"} | {"E"})
     params = params or HeuristicParams()
-    sel = score_modes(analysis, model, params, categories=None)
+    sel = score_modes(analysis, model, params, categories=None, labels=labels)
     missing = [c for c in wanted if c not in sel.best]
     if missing:
-        parts = "feet, knees" + (" and front legs" if g.kind == "quadruped" else "")
-        raise InputError(
-            f"gait {g.name!r} needs categories {', '.join(missing)} that this model's labels "
-            f"do not support (a {g.kind} with {parts})"
-        )
+        raise InputError(f"gait {g.name!r} cannot be built on this {g.kind}: "
+                         + "; ".join(_missing_reason(sel, c, g.kind) for c in missing))
     comps: list[Component] = []
     chosen: list[dict] = []
     merged: dict[str, int] = {}
+    substituted: dict[str, dict] = {}
     used: dict[int, dict] = {}
     for t in g.terms:
         f = freq_hz if freq_hz is not None and math.isclose(t.freq_hz, 2.0) else t.freq_hz
@@ -246,23 +303,104 @@ def plan_gait(
                                    amplitude_scale * t.beta, -1, label))
             chosen.append({"mode": "rigid", "categories": ["bounce"], "freq_hz_natural": 0.0,
                            "amplitude": t.amplitude, "phase_deg": t.phase_deg, "freq_hz": f,
-                           "beta": t.beta, "sign": t.sign})
+                           "beta": t.beta, "sign": t.sign, "mode_sign": t.sign})
             continue
         mode, sign = sel.best[t.category]
         if mode in used:
-            merged[t.category] = mode
-            used[mode]["categories"].append(t.category)
-            continue
+            prev = used[mode]
+            if not t.distinct or _same_motion(prev, sign * t.sign, t.phase_deg, f):
+                merged[t.category] = mode
+                prev["categories"].append(t.category)
+                continue
+            alt = [r for r in sel.ranked(t.category) if r[0] not in used]
+            if not alt or alt[0][2] < params.min_substitute_relative:
+                best_alt = (f"the next best, mode {alt[0][0]}, has {100 * alt[0][2]:.0f}% of its "
+                            f"{CATEGORY_NAMES[t.category]}" if alt else "no other mode has any")
+                raise InputError(
+                    f"gait {g.name!r} needs {t.category} ({CATEGORY_NAMES[t.category]}) at "
+                    f"{t.phase_deg:g} deg apart from {'/'.join(prev['categories'])} at "
+                    f"{prev['phase_deg']:g} deg, but mode {mode} tops both and {best_alt} "
+                    f"(< {100 * params.min_substitute_relative:.0f}%): the gait would collapse "
+                    "into another; compose it by hand in a gait file (--save-gait, edit, "
+                    "--gait-file) or change the stiffness (--stiffness JOINT=SCALE)")
+            substituted[t.category] = {"top_mode": mode, "mode": alt[0][0],
+                                       "relative": alt[0][2]}
+            log.info("gait %s: mode %d tops %s and %s at different phases; %s takes mode %d "
+                     "(%.0f%% of the top)", g.name, mode, prev["categories"][0], t.category,
+                     t.category, alt[0][0], 100 * alt[0][2])
+            mode, sign = alt[0][0], alt[0][1]
         shape = sign * t.sign * rotation_normalized_shape(analysis, mode)
         label = f"{t.category} {CATEGORY_NAMES[t.category]}"
         comps.append(Component(shape, amplitude_scale * t.amplitude, phase, f,
                                amplitude_scale * t.beta, mode, label))
         entry = {"mode": mode, "categories": [t.category],
                  "freq_hz_natural": float(analysis.freqs_hz[mode]), "amplitude": t.amplitude,
-                 "phase_deg": t.phase_deg, "freq_hz": f, "beta": t.beta, "sign": t.sign}
+                 "phase_deg": t.phase_deg, "freq_hz": f, "beta": t.beta, "sign": t.sign,
+                 "mode_sign": sign * t.sign, "_eff_sign": sign * t.sign}
         used[mode] = entry
         chosen.append(entry)
-    return GaitPlan(g, analysis, sel, tuple(comps), tuple(chosen), merged, tuple(constraints))
+    for e in chosen:
+        e.pop("_eff_sign", None)
+    return GaitPlan(g, analysis, sel, tuple(comps), tuple(chosen), merged, tuple(constraints),
+                    substituted)
+
+
+def plan_from_file(
+    model: mujoco.MjModel,
+    g: Gait,
+    gf: GaitFile,
+    stiffness_scale: float,
+    labels: Labels | None = None,
+    amplitude_scale: float = 1.0,
+) -> GaitPlan:
+    """A gait file played on ``model``: the same analysis as :func:`plan_gait` (``g``
+    gives the rest keyframe and constraints), the modes and sliders from the file."""
+    keyframe = g.keyframe
+    if keyframe is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe) < 0:
+        keyframe = None
+    constraints = build_constraints(g.constraints)
+    analysis = analyze(model, keyframe=keyframe, constraints=constraints, stiffness=g.stiffness,
+                       stiffness_scale=stiffness_scale)
+    sel = score_modes(analysis, model, HeuristicParams(), labels=labels)
+    file_gait = replace(g, name=gf.name, selection="gait file", terms=())
+    comps = gf.components(analysis, lambda m: rotation_normalized_shape(analysis, m))
+    if amplitude_scale != 1.0:
+        comps = [replace(c, amplitude=c.amplitude * amplitude_scale, beta=c.beta * amplitude_scale)
+                 for c in comps]
+    chosen = tuple({"mode": c.mode, "categories": list(c.label.split("+")),
+                    "freq_hz_natural": float(analysis.freqs_hz[c.mode]), "amplitude": c.amplitude,
+                    "phase_deg": math.degrees(c.phase_rad), "freq_hz": c.freq_hz, "beta": c.beta,
+                    "sign": 1.0, "mode_sign": float(np.sign(np.dot(c.shape, analysis.shapes[:, c.mode])))}
+                   for c in comps)
+    return GaitPlan(file_gait, analysis, sel, tuple(comps), chosen, {}, tuple(constraints))
+
+
+def gait_file_of(plan: GaitPlan, amplitude_scale: float = 1.0, *, knee_flex_deg: float = 0.0,
+                 stiffness_scale: float = 1.0, stiffness: dict[str, float] | None = None) -> GaitFile:
+    """What the heuristics chose, as a gait file (the rigid bounce of the jumps is not a
+    mode and is left out, with a warning)."""
+    modes = []
+    for c in plan.chosen:
+        if c["mode"] == "rigid":
+            log.warning("gait %s: its rigid bounce is not a mode; the gait file leaves it out",
+                        plan.gait.name)
+            continue
+        modes.append({"mode": int(c["mode"]), "categories": list(c["categories"]),
+                      "sign": float(c["mode_sign"]), "amplitude": c["amplitude"] * amplitude_scale,
+                      "phase_deg": float(c["phase_deg"]), "freq_hz": float(c["freq_hz"]),
+                      "beta": c["beta"] * amplitude_scale})
+    if not modes:
+        raise InputError(f"gait {plan.gait.name!r} uses no vibration mode: nothing to save")
+    sel = plan.selection
+    sway = sel.ranked("sway") if "sway" in sel.functionals else []
+    posture = sel.ranked("D") if "D" in sel.functionals else []
+    return GaitFile(
+        name=plan.gait.name, modes=modes,
+        sway_mode=sway[0][0] if sway else None, sway_sign=sway[0][1] if sway else 1.0,
+        posture_mode=posture[0][0] if posture else None,
+        posture_sign=posture[0][1] if posture else 1.0,
+        knee_flex_deg=knee_flex_deg, stiffness_scale=stiffness_scale,
+        stiffness=dict(stiffness or {}))
 
 
 def rotation_normalized_shape(analysis: ModalAnalysis, mode: int) -> np.ndarray:

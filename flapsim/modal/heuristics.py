@@ -84,6 +84,15 @@ class HeuristicParams:
     rigid_feature_m: float = 0.1
     """Size of a rigid-body component (the jump's bounce) at amplitude 1, m of its
     feature (ours: the paper does not state its normalisation)."""
+    min_substitute_relative: float = 0.25
+    """When a gait needs two categories in different phases and one mode tops both, the
+    next best mode of the later category replaces it only if its feature is at least
+    this fraction of the top mode's (ours: below a quarter, the gait would be the other
+    gait with a faint trace of this one, so it is refused instead)."""
+
+
+Point = tuple[int, tuple[float, float, float]]
+"""A point riding on a body: (body id, position in the body's frame, m)."""
 
 
 @dataclass(frozen=True)
@@ -91,28 +100,45 @@ class Labels:
     """The labelled parts of a creature, resolved to ids."""
 
     quadruped: bool
-    """True when front paws (``paw_fl``/``paw_fr``) are labelled."""
-    feet: tuple[int, int]
-    """Site ids of the left and right (hind) feet."""
+    """True when front feet are labelled."""
+    feet: tuple[Point, Point]
+    """The left and right (hind) feet."""
     knees: tuple[int, int]
-    """Dof addresses of the left and right (hind) knee hinges (positive = flexion)."""
-    front_feet: tuple[int, int] | None
-    """Site ids of the front paws (quadrupeds)."""
+    """Dof addresses of the left and right (hind) knee hinges."""
+    front_feet: tuple[Point, Point] | None
+    """The front feet (quadrupeds)."""
     elbows: tuple[int, int] | None
     """Dof addresses of the left/right elbows (front legs of a quadruped)."""
-    hands: tuple[int, int] | None
-    """Site ids of the hands (bipeds)."""
+    hands: tuple[Point, Point] | None
+    """The hands (bipeds)."""
     head_body: int | None
-    """Body id holding the ``head`` site."""
+    """Body id of the head."""
     root_body: int
     """Body id of the floating root (the pelvis)."""
     forward: np.ndarray
     """Unit forward direction (world), from the root's x axis at rest."""
+    knee_signs: tuple[float, float] = (1.0, 1.0)
+    """+1 where the knee hinge's positive rotation is flexion, else -1."""
+    elbow_signs: tuple[float, float] = (1.0, 1.0)
+    """The same for the elbows."""
+    foot_names: tuple[str, ...] = ()
+    """Display names of the feet: left, right (hind), then front left, front right."""
 
 
 def _site(model: mujoco.MjModel, name: str) -> int | None:
     i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
     return None if i < 0 else int(i)
+
+
+def site_point(model: mujoco.MjModel, site: int) -> Point:
+    """The site as a point riding on its body."""
+    return int(model.site_bodyid[site]), tuple(float(v) for v in model.site_pos[site])
+
+
+def point_world(data: mujoco.MjData, p: Point) -> np.ndarray:
+    """World position of a body point."""
+    b, local = p
+    return data.xpos[b] + data.xmat[b].reshape(3, 3) @ np.asarray(local)
 
 
 def _hinge_dof(model: mujoco.MjModel, name: str) -> int | None:
@@ -122,6 +148,12 @@ def _hinge_dof(model: mujoco.MjModel, name: str) -> int | None:
     if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
         raise ModelError(f"joint {name!r} must be a hinge (flexion positive) for the heuristics")
     return int(model.jnt_dofadr[j])
+
+
+def has_convention_labels(model: mujoco.MjModel) -> bool:
+    """True when the model names its feet by the convention (foot_l/r or paw_hl/hr)."""
+    return (_site(model, "foot_l") is not None and _site(model, "foot_r") is not None) or (
+        _site(model, "paw_hl") is not None and _site(model, "paw_hr") is not None)
 
 
 def find_labels(model: mujoco.MjModel, data: mujoco.MjData) -> Labels:
@@ -146,7 +178,8 @@ def find_labels(model: mujoco.MjModel, data: mujoco.MjData) -> Labels:
             f"the model lacks the labels the gait heuristics read: {', '.join(missing)}; "
             "name the feet sites foot_l/foot_r (or paw_hl/paw_hr/paw_fl/paw_fr for a "
             "quadruped) and the knee/elbow hinges knee_l/knee_r, elbow_l/elbow_r "
-            "(or knee_hl/knee_hr, elbow_fl/elbow_fr)"
+            "(or knee_hl/knee_hr, elbow_fl/elbow_fr), or let `flapsim animate MODEL.xml` "
+            "find them from the kinematic tree"
         )
     hands = (_site(model, "hand_l"), _site(model, "hand_r"))
     head = _site(model, "head")
@@ -158,17 +191,34 @@ def find_labels(model: mujoco.MjModel, data: mujoco.MjData) -> Labels:
     fwd[2] = 0.0
     if np.linalg.norm(fwd) < 1e-6:
         raise ModelError("the root body's x axis points straight up: cannot tell forward")
+    front = (_site(model, "paw_fl"), _site(model, "paw_fr")) if quad else None
     return Labels(
         quadruped=quad,
-        feet=(int(feet[0]), int(feet[1])),
+        feet=(site_point(model, feet[0]), site_point(model, feet[1])),
         knees=(int(knees[0]), int(knees[1])),
-        front_feet=(_site(model, "paw_fl"), _site(model, "paw_fr")) if quad else None,
+        front_feet=(site_point(model, front[0]), site_point(model, front[1])) if quad else None,
         elbows=(int(elbows[0]), int(elbows[1])) if None not in elbows else None,
-        hands=(int(hands[0]), int(hands[1])) if None not in hands else None,
+        hands=(site_point(model, hands[0]), site_point(model, hands[1]))
+        if None not in hands else None,
         head_body=int(model.site_bodyid[head]) if head is not None else None,
         root_body=root,
         forward=fwd / np.linalg.norm(fwd),
+        foot_names=("paw_hl", "paw_hr", "paw_fl", "paw_fr") if quad else ("foot_l", "foot_r"),
     )
+
+
+def point_jacobian(model: mujoco.MjModel, data: mujoco.MjData, p: Point, root: int) -> np.ndarray:
+    """Velocity Jacobian (3, nv) of a body point relative to a point riding rigidly on the
+    root body: leg motion, not whole-body rocking (a free creature's low modes rock the
+    whole body to keep its momentum zero, and with the head fixed the body swings about
+    the head)."""
+    nv = model.nv
+    x = point_world(data, p)
+    jp = np.zeros((3, nv))
+    mujoco.mj_jac(model, data, jp, None, x, p[0])
+    jroot = np.zeros((3, nv))
+    mujoco.mj_jac(model, data, jroot, None, x, root)
+    return jp - jroot
 
 
 def feature_functionals(
@@ -184,23 +234,16 @@ def feature_functionals(
     fwd = lab.forward
     lat = np.cross(up, fwd)
 
-    def jsite(s: int) -> np.ndarray:
-        # Site velocity relative to a point riding rigidly on the root body: leg motion,
-        # not whole-body rocking (a free creature's low modes rock the whole body to keep
-        # its momentum zero, and with the head fixed the body swings about the head).
-        jp = np.zeros((3, nv))
-        mujoco.mj_jacSite(model, data, jp, None, s)
-        jroot = np.zeros((3, nv))
-        mujoco.mj_jac(model, data, jroot, None, data.site_xpos[s], lab.root_body)
-        return jp - jroot
+    def jsite(p: Point) -> np.ndarray:
+        return point_jacobian(model, data, p, lab.root_body)
 
-    def unit(d: int) -> np.ndarray:
+    def unit(d: int, sign: float = 1.0) -> np.ndarray:
         e = np.zeros(nv)
-        e[d] = 1.0
+        e[d] = sign
         return e
 
     jl, jr = jsite(lab.feet[0]), jsite(lab.feet[1])
-    kl, kr = unit(lab.knees[0]), unit(lab.knees[1])
+    kl, kr = unit(lab.knees[0], lab.knee_signs[0]), unit(lab.knees[1], lab.knee_signs[1])
     g: dict[str, np.ndarray] = {
         "A": (kl - kr) / 2,
         "B": fwd @ (jl - jr) / 2,
@@ -216,7 +259,8 @@ def feature_functionals(
     g["bounce"] = up @ jroot
     if lab.quadruped:
         fl, fr = jsite(lab.front_feet[0]), jsite(lab.front_feet[1])
-        g["F"] = (unit(lab.elbows[0]) - unit(lab.elbows[1])) / 2
+        g["F"] = (unit(lab.elbows[0], lab.elbow_signs[0])
+                  - unit(lab.elbows[1], lab.elbow_signs[1])) / 2
         g["G"] = fwd @ (fl - fr) / 2
         g["H"] = fwd @ ((jl + jr) - (fl + fr)) / 4
         g["P"] = up @ ((fl + fr) - (jl + jr)) / 4
@@ -268,18 +312,26 @@ class Selection:
     def category_of(self, mode: int) -> list[str]:
         return [c for c, (m, _) in self.best.items() if m == mode]
 
+    def ranked(self, category: str) -> list[tuple[int, float, float]]:
+        """Candidates for ``category``, best first: (mode, sign, relative feature)."""
+        out = [(s.mode, 1.0 if s.features[category] > 0 else -1.0, s.relative[category])
+               for s in self.scores if category in s.features and s.features[category] != 0]
+        return sorted(out, key=lambda x: -x[2])
+
 
 def score_modes(
     analysis: ModalAnalysis,
     model: mujoco.MjModel,
     params: HeuristicParams = HeuristicParams(),
     categories: Sequence[str] | None = None,
+    labels: Labels | None = None,
 ) -> Selection:
     """Score the lowest ``params.n_candidates`` elastic modes and pick the top mode of
-    each category (``categories``: default all the model's labels support)."""
+    each category (``categories``: default all the model's labels support; ``labels``:
+    default the naming convention)."""
     if params.n_candidates < 1:
         raise InputError("n_candidates must be >= 1")
-    g, lab = feature_functionals(model, analysis.rest_qpos)
+    g, lab = feature_functionals(model, analysis.rest_qpos, labels)
     first = analysis.n_rigid
     cand = list(range(first, min(analysis.n_modes, first + params.n_candidates)))
     if not cand:

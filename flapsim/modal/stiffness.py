@@ -69,13 +69,14 @@ def sag(
     *,
     keyframe: str | None = None,
     seconds: float = 1.0,
+    qpos: np.ndarray | None = None,
 ) -> tuple[float, str]:
     """Simulate ``seconds`` from rest at stiffness ``scale``; return the largest internal
     joint deviation from the rest pose (rad) and that joint's name."""
     if not (scale > 0 and math.isfinite(scale)):
         raise InputError("stiffness scale must be a positive number")
     m = _copy(model)
-    q0 = rest_pose(m, keyframe)
+    q0 = rest_pose(m, keyframe, qpos)
     m.qpos_spring[:] = q0
     m.jnt_stiffness[:] = model.jnt_stiffness * scale
     m.dof_damping[:] = model.dof_damping * scale
@@ -115,7 +116,8 @@ class TuningResult:
 
 
 def tune_stiffness(
-    model: mujoco.MjModel, *, keyframe: str | None = None, params: TuningParams = TuningParams()
+    model: mujoco.MjModel, *, keyframe: str | None = None, params: TuningParams = TuningParams(),
+    qpos: np.ndarray | None = None,
 ) -> TuningResult:
     """Bisect for the smallest uniform stiffness scale that holds the rest pose."""
     if not (0 < params.lo < params.hi):
@@ -123,7 +125,7 @@ def tune_stiffness(
     trials: list[Trial] = []
 
     def trial(s: float) -> bool:
-        dev, name = sag(model, s, keyframe=keyframe, seconds=params.seconds)
+        dev, name = sag(model, s, keyframe=keyframe, seconds=params.seconds, qpos=qpos)
         ok = dev <= params.tolerance_rad
         trials.append(Trial(s, dev, name, ok))
         log.info("stiffness x%.4g: max deviation %.1f deg (%s) -> %s", s, math.degrees(dev),

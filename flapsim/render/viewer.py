@@ -5,7 +5,11 @@ the window) with a camera tracking the animal's trunk, receives keys through a q
 key callback, which runs in the viewer's thread, only puts the key code there: the
 simulation loop reads and applies them, so no lock is shared with the physics), draws
 markers and paths as extra geoms, writes a text overlay, and paces the simulation to real
-time. ``Home`` switches between the tracking camera and MuJoCo's free camera. A left
+time. The tracking camera is a chase camera (:class:`flapsim.render.video.CameraRig`) that turns
+with the animal's heading; ``Home`` switches between it and MuJoCo's free camera (and back,
+so the animal can always be found again); ``Escape`` closes the viewer (:attr:`closed_by`).
+:meth:`AnimalViewer.flash` draws feedback (an arrow) for :data:`FLASH_S`; the overlay ends
+with the achieved real-time factor and :data:`HELP`. A left
 double-click in the scene is MuJoCo's selection; :meth:`AnimalViewer.pending_clicks` hands
 the point clicked to the caller (the swimmer's viewer puts its target there, as the paper's
 user places it with the mouse; the dove's turns toward it). Reading it takes the viewer's
@@ -22,7 +26,6 @@ import queue
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import mujoco
 import mujoco.viewer
@@ -30,13 +33,24 @@ import numpy as np
 
 from flapsim.core.errors import InputError
 from flapsim.core.validate import display_problem
+from flapsim.render.scene import Arrow, Item, Marker, Polyline, add_items  # noqa: F401 - re-exported for the animals' viewers
+from flapsim.render.video import Camera, CameraRig
 
 #: GLFW key codes (what MuJoCo's key callback receives); keys the viewer itself leaves alone
 KEY_INSERT, KEY_DELETE, KEY_RIGHT, KEY_LEFT, KEY_DOWN, KEY_UP = 260, 261, 262, 263, 264, 265
 KEY_PAGE_UP, KEY_PAGE_DOWN, KEY_HOME, KEY_END = 266, 267, 268, 269
+KEY_ESCAPE = 256
+"""Closes the viewer (MuJoCo's own viewer also frees its camera on it: the tracking is put
+back before the window goes)."""
 KEY_NAMES = {KEY_INSERT: "Insert", KEY_DELETE: "Delete", KEY_RIGHT: "Right", KEY_LEFT: "Left",
              KEY_DOWN: "Down", KEY_UP: "Up", KEY_PAGE_UP: "Page_Up", KEY_PAGE_DOWN: "Page_Down",
-             KEY_HOME: "Home", KEY_END: "End"}
+             KEY_HOME: "Home", KEY_END: "End", KEY_ESCAPE: "Escape"}
+HELP = "Esc: close   Home: chase / free camera"
+"""The overlay's last line: how to leave, and how to get the animal back in view."""
+FLASH_S = 1.0
+"""How long feedback (a push's or a gust's arrow) stays drawn, s of simulated time."""
+RATE_WINDOW_S = 2.0
+"""The overlay's real-time factor is measured over the last this many wall seconds."""
 FRAME_S = 1.0 / 30.0
 """How often the view is refreshed, s of simulated time."""
 
@@ -56,24 +70,6 @@ def check_display() -> None:
     problem = None if os.environ.get("WAYLAND_DISPLAY") else display_problem()
     if problem:
         raise InputError(problem)
-
-
-@dataclass(frozen=True)
-class Marker:
-    """A sphere drawn in the scene (a target), m."""
-
-    pos: Sequence[float]
-    radius: float = 0.15
-    rgba: Sequence[float] = (0.9, 0.15, 0.1, 0.9)
-
-
-@dataclass(frozen=True)
-class Polyline:
-    """A path drawn as thin capsules through ``points`` (n, 3), m."""
-
-    points: np.ndarray
-    width: float = 0.03
-    rgba: Sequence[float] = (0.95, 0.55, 0.1, 0.8)
 
 
 class AnimalViewer:
@@ -104,6 +100,14 @@ class AnimalViewer:
         # window down, or the exiting interpreter terminates GLFW under it (seen here:
         # GLXBadDrawable, then a segfault or a hang)
         self._threads = [t for t in threading.enumerate() if t not in before]
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, self.body)
+        self.rig = CameraRig(model, Camera(name, "chase", distance=distance, elevation_deg=-15.0,
+                                           lead_m=0.3 * distance))
+        self.closed_by: str | None = None
+        """``"Escape"`` once Escape was pressed (the window then closes), else None."""
+        self._flashes: list[tuple[float, object]] = []
+        self._last_sim: float | None = None
+        self._rates: list[tuple[float, float]] = []
         self._camera()
         self._take_selection()
         self._t0_wall: float | None = None
@@ -113,14 +117,9 @@ class AnimalViewer:
     def _camera(self) -> None:
         with self.handle.lock():
             cam = self.handle.cam
+            cam.type = mujoco.mjtCamera.mjCAMERA_FREE  # moved by the rig while tracking
             if self.tracking:
-                cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-                cam.trackbodyid = self.body
-                cam.distance = self.distance
-                cam.elevation = -15.0
-                cam.azimuth = 30.0  # behind and beside an animal heading +x (both start so)
-            else:
-                cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+                self.rig.heading = None  # pick the heading up again where the animal is
 
     def pending_keys(self, t: float | None = None) -> list[int]:
         """Keys pressed since the last call (``Home`` is handled here: camera switch)."""
@@ -130,8 +129,30 @@ class AnimalViewer:
             if k == KEY_HOME:
                 self.tracking = not self.tracking
                 self._camera()
+            elif k == KEY_ESCAPE:
+                self.closed_by = "Escape"
             out.append(k)
         return out
+
+    def flash(self, item: Item, sim_time: float, seconds: float = FLASH_S) -> None:
+        """Draw ``item`` (e.g. an :class:`~flapsim.render.scene.Arrow`) until ``sim_time +
+        seconds``."""
+        self._flashes.append((float(sim_time) + seconds, item))
+
+    @property
+    def real_time_factor(self) -> float | None:
+        """Simulated over wall time since the first frame shown (None before two frames)."""
+        if self._t0_wall is None or self._last_sim is None:
+            return None
+        wall = time.perf_counter() - self._t0_wall
+        return (self._last_sim - self._t0_sim) / wall if wall > 0 else None
+
+    def _recent_rate(self, sim_time: float, now: float) -> float | None:
+        self._rates.append((now, sim_time))
+        while len(self._rates) > 2 and now - self._rates[1][0] > RATE_WINDOW_S:
+            self._rates.pop(0)
+        (w0, s0) = self._rates[0]
+        return (sim_time - s0) / (now - w0) if now > w0 else None
 
     def pending_clicks(self) -> list[np.ndarray]:
         """World points (m) double-clicked in the scene since the last call, at most one per
@@ -160,50 +181,43 @@ class AnimalViewer:
 
     @property
     def running(self) -> bool:
-        return bool(self.handle.is_running())
+        return self.closed_by is None and bool(self.handle.is_running())
 
-    def show(self, sim_time: float, items: Sequence[Marker | Polyline] = (),
+    def show(self, sim_time: float, items: Sequence[Item] = (),
              texts: tuple[str, str] | None = None) -> bool:
-        """Draw ``data`` with ``items`` and the overlay, then wait until real time catches up
-        with ``sim_time``; False once the window is closed."""
-        if not self.handle.is_running():
+        """Draw ``data`` with ``items``, the flashes and the overlay (``texts``: its labels and
+        values columns; the real-time factor and :data:`HELP` are added), then wait until real
+        time catches up with ``sim_time``; False once the window is closed or Escape pressed."""
+        if not self.running:
             return False
+        sim_time = float(sim_time)
+        dt = 0.0 if self._last_sim is None else max(0.0, sim_time - self._last_sim)
+        self._last_sim = sim_time
+        self._flashes = [(end, it) for end, it in self._flashes if end >= sim_time]
+        now = time.perf_counter()
+        rate = self._recent_rate(sim_time, now)
         with self.handle.lock():
-            self._draw(items)
-        if texts is not None:
-            self.handle.set_texts((None, mujoco.mjtGridPos.mjGRID_TOPLEFT, texts[0], texts[1]))
+            if self.tracking:
+                self.rig.update(self.handle.cam, self.data, dt)
+            self._draw([*items, *(it for _, it in self._flashes)])
+        labels, values = texts if texts is not None else ("", "")
+        labels = (labels.rstrip("\n") + "\n" if labels else "") + "real time\nleave"
+        values = (values.rstrip("\n") + "\n" if values else "") + (
+            f"{rate:.2f}x" if rate is not None else "-") + f"\n{HELP}"
+        self.handle.set_texts((None, mujoco.mjtGridPos.mjGRID_TOPLEFT, labels, values))
         self.handle.sync()
         now = time.perf_counter()
         if self._t0_wall is None:
-            self._t0_wall, self._t0_sim = now, float(sim_time)
+            self._t0_wall, self._t0_sim = now, sim_time
         ahead = (sim_time - self._t0_sim) - (now - self._t0_wall)
         if ahead > 0:
             time.sleep(ahead)
         return True
 
-    def _draw(self, items: Sequence[Marker | Polyline]) -> None:
+    def _draw(self, items: Sequence[Item]) -> None:
         scn = self.handle.user_scn
         scn.ngeom = 0
-        for it in items:
-            if isinstance(it, Marker):
-                if scn.ngeom >= scn.maxgeom:
-                    return
-                mujoco.mjv_initGeom(scn.geoms[scn.ngeom], mujoco.mjtGeom.mjGEOM_SPHERE,
-                                    np.array([it.radius, 0, 0]), np.asarray(it.pos, float),
-                                    np.eye(3).ravel(), np.asarray(it.rgba, np.float32))
-                scn.ngeom += 1
-            else:
-                pts = np.asarray(it.points, float)
-                step = max(1, int(np.ceil(len(pts) / max(1, scn.maxgeom - scn.ngeom - 8))))
-                pts = pts[::step]
-                for a, b in zip(pts[:-1], pts[1:], strict=True):
-                    if scn.ngeom >= scn.maxgeom:
-                        return
-                    g = scn.geoms[scn.ngeom]
-                    mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3),
-                                        np.eye(3).ravel(), np.asarray(it.rgba, np.float32))
-                    mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, it.width, a, b)
-                    scn.ngeom += 1
+        add_items(scn, items)
 
     def close(self) -> None:
         """Close the window and wait (up to 10 s) until the viewer's thread is done."""

@@ -26,7 +26,7 @@ from flapsim.bird.tasks.flight_tasks import Forest, PushSpec, Task, Tree, fly_ta
 from flapsim.bird.tasks.path_control import FlightPath, load_path
 from flapsim.core.errors import InputError
 from flapsim.fluid import flow
-from flapsim.scenarios.plots import flight_plot
+from flapsim.scenarios.plots import flight_plot, plot_stem
 from flapsim.scenarios.registry import EvalOptions, Scenario, get, register
 
 PUSH_FORCES_N = (3.0, 6.0, 8.0, 10.0, 12.0)
@@ -91,16 +91,23 @@ def _fly_task(task, opt: EvalOptions, record: bool):
                     predict=opt.predict, config=opt.controller)
 
 
-def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "") -> list[str]:
+def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "", mates=()) -> list[str]:
+    """The run's plot and video (``mates``: the other birds' (times, positions) tracks, drawn
+    in the video)."""
     files: list[str] = []
-    stem = sc.name + (f"-{tag}" if tag else "")
+    stem = plot_stem(sc.name, opt.path_file if sc.params.get("shape") == "file" else None, tag)
     if opt.plots_dir:
         out = Path(opt.plots_dir) / f"{stem}.png"
         flight_plot(task.path, r, out, title=f"{stem}: {r.status}", forest=task.forest)
         files.append(str(out))
     if opt.video_dir and r.qpos is not None and len(r.qpos):
         out = Path(opt.video_dir) / f"{stem}.mp4"
-        dove_video(Dove.load(feathers=opt.feathers), r.qpos, out, opt.fps, *opt.size)
+        path = task.path
+        dove_video(Dove.load(feathers=opt.feathers), r.qpos, out, opt.fps, *opt.size,
+                   slowmo=opt.slowmo, camera=opt.camera, min_seconds=0.0,
+                   path_points=path.point(np.linspace(0.0, path.length, 600)),
+                   forest=task.forest, wingbeat_times=r.times, mates=mates,
+                   metric=("distance from path", path.distance))
         files.append(str(out))
     return files
 
@@ -246,7 +253,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     leader = paths.figure8(**(p["quick_args"] if opt.quick else p["args"]), n=13)
     birds = p["quick_birds"] if opt.quick else p["birds"]
     offsets = p["offsets"][:birds]
-    results, files, tracks = [], [], []
+    results, files, tracks, tasks = [], [], [], []
     for i, off in enumerate(offsets):
         path = leader if i == 0 else paths.perturbed_copy(leader, off, p["jitter_m"], rng,
                                                           horizontal=True)
@@ -254,9 +261,13 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
         r = _fly_task(task, opt, record=True)
         results.append(r)
         tracks.append(_track(r))
+        tasks.append(task)
         if not opt.video_dir:
             r.qpos = None  # every step's full state (~100 MB a bird) is only needed for a video
-        files += _outputs(sc, opt, task, r, tag=f"bird{i}")
+    for i, (task, r) in enumerate(zip(tasks, results, strict=True)):
+        # after every bird has flown: each bird's video shows its flock mates
+        files += _outputs(sc, opt, task, r, tag=f"bird{i}", mates=tracks[:i] + tracks[i + 1:])
+        r.qpos = None
     sep = min_separation(tracks)
     collided = bool(sep < p["collision_m"])
     ok = all(r.ok for r in results) and not collided

@@ -91,8 +91,12 @@ class EvalOptions:
     """A user's path file (the ``path`` scenario)."""
     quick: bool = False
     """Shorter variants (tests, smoke runs)."""
-    fps: float = 30.0
+    fps: float = 60.0
     size: tuple[int, int] = (640, 480)
+    slowmo: float | None = None
+    """Videos: slow motion factor (None: real time)."""
+    camera: str = "chase"
+    """Videos: camera mode (:data:`flapsim.render.video.CAMERAS`)."""
 
     def to_dict(self) -> dict:
         return asdict(self)

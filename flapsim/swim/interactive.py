@@ -12,7 +12,10 @@ breaststroke; treading water stays in place). Keys:
 * Page Up / Page Down: stroke rate x1.05 / /1.05;
 * End: switch the control layers, basic -> basic + per-cycle -> all -> basic (the
   paper's Fig. 15 comparison, live; ``--layers`` sets the first);
-* closing the window (or ``--seconds``) ends the swim; the usual results follow.
+* Escape or closing the window (or ``--seconds``) ends the swim; the usual results follow.
+
+The window opens at the first control step, on the swimmer in the water; the chase camera
+behind it along its heading keeps the target ahead in view.
 
 The window, camera (tracking the thorax; ``Home``: free camera), key queue, overlay and
 pacing are the shared :class:`flapsim.render.viewer.AnimalViewer`; this module holds what is the
@@ -22,6 +25,8 @@ Needs a display (or Xvfb) and MuJoCo's GLFW backend: ``MUJOCO_GL`` unset or ``gl
 """
 
 from __future__ import annotations
+
+import sys
 
 import numpy as np
 
@@ -56,10 +61,16 @@ class SwimViewer:
     def __init__(self, swimmer: Swimmer, target: Point, launch=None) -> None:
         self.target = target
         self.events: list[dict] = []
-        self.view = AnimalViewer(swimmer.model, swimmer.data, "thorax", distance=3.0, launch=launch)
+        self._launch = launch
+        self.view: AnimalViewer | None = None
+        """Opened at the first control step, on the swimmer in the water (not on the pose it
+        is built in)."""
 
     def __call__(self, swimmer: Swimmer, layer: BasicStrokeLayer) -> bool:
         d = swimmer.data
+        if self.view is None:
+            print("flapsim swim: opening the viewer; Esc closes it", file=sys.stderr, flush=True)
+            self.view = AnimalViewer(swimmer.model, d, "thorax", distance=3.0, launch=self._launch)
         for key in self.view.pending_keys():
             self._key(key, layer, float(d.time))
         if d.time + 1e-9 < self.view.next_frame:
@@ -105,8 +116,9 @@ class SwimViewer:
                 f"{layer.stroke.name}\n{layer.rate_hz:.2f} cycles/s\n{mode}\n"
                 f"({self.target.x:g}, {self.target.y:g}) m\n{dist:.1f} m\n"
                 "double-click: place target, arrows: move it,\n"
-                "PgUp/PgDn: rate, End: layers, Home: camera")
+                "PgUp/PgDn: rate, End: layers")
 
     def close(self) -> None:
         """Close the window and wait until the viewer's thread is done."""
-        self.view.close()
+        if self.view is not None:
+            self.view.close()

@@ -99,12 +99,13 @@ def user_table_dir() -> Path:
     return Path(base) / "tables"
 
 
-def table_path(stroke: Stroke, for_writing: bool = False) -> Path:
-    """Where a stroke's calibration table lives: next to its file; for a bundled stroke, a
-    calibration of the user's (:func:`user_table_dir`) when there is one, else the bundled
-    table. ``for_writing``: where a new calibration goes (never into the package)."""
+def table_path(stroke: Stroke, body_shape: str = "box", for_writing: bool = False) -> Path:
+    """Where a stroke's calibration table lives: next to its file (``NAME.cycle.json``
+    for the box body, ``NAME.rounded.cycle.json`` for the rounded one); for a bundled
+    stroke, a calibration of the user's (:func:`user_table_dir`) when there is one, else the
+    bundled table. ``for_writing``: where a new calibration goes (never into the package)."""
     p = Path(stroke.path) if stroke.path else STROKE_DIR / f"{stroke.name}.toml"
-    beside = p.with_name(p.stem + ".cycle.json")
+    beside = p.with_name(p.stem + ("" if body_shape == "box" else f".{body_shape}") + ".cycle.json")
     if not _bundled(p):
         return beside
     mine = user_table_dir() / beside.name
@@ -199,13 +200,14 @@ class CycleTable:
 
 
 def load_table(stroke: Stroke, path: str | Path | None = None, check: bool = True,
-               layers: str = "cycle") -> CycleTable:
+               layers: str = "cycle", body_shape: str = "box") -> CycleTable:
     """The calibration table of ``stroke`` (default: next to its file) for swimming with
     ``layers`` ("cycle": basic + per-cycle; "all": the continuous layer running too,
     which changes how far a sequence turns the swimmer). ``check``: the table must have
     been made from this very file (its hash)."""
-    p = Path(path) if path is not None else table_path(stroke)
-    cmd = f"flapsim swim --calibrate --stroke {stroke.path or stroke.name}"
+    p = Path(path) if path is not None else table_path(stroke, body_shape)
+    cmd = f"flapsim swim --calibrate --stroke {stroke.path or stroke.name}" + \
+        ("" if body_shape == "box" else f" --body {body_shape}")
     if not p.is_file():
         raise InputError(f"stroke {stroke.name!r} has no per-cycle calibration table ({p}); "
                          f"make it with: {cmd}")
@@ -221,6 +223,10 @@ def load_table(stroke: Stroke, path: str | Path | None = None, check: bool = Tru
     if check and table.provenance.get("stroke_sha256") != stroke_hash(stroke):
         raise DataFileError(f"{p} was calibrated for another version of {stroke.path}; "
                             f"recalibrate: {cmd}")
+    made_on = (table.provenance.get("swimmer_params") or {}).get("body_shape", "box")
+    if check and made_on != body_shape:
+        raise DataFileError(f"{p} was calibrated on the {made_on} body, not the {body_shape} "
+                            f"one; recalibrate: {cmd}")
     made = (table.provenance.get("config") or {}).get("hand_rules")
     if check and layers == "all" and made != calibration_settings():
         raise DataFileError(f"{p}: its 'all' table was made with other continuous-layer rules "
@@ -588,7 +594,8 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
         raise InputError("snapshot cycles must be whole numbers >= 0")
     if not weights or any(not (0 < w <= 1) for w in weights):
         raise InputError("calibration weights must be in (0, 1]")
-    out_p = Path(out) if out is not None else table_path(st, for_writing=True)
+    out_p = Path(out) if out is not None else table_path(
+        st, (params or {}).get("body_shape", "box"), for_writing=True)
     if out is None:
         out_p.parent.mkdir(parents=True, exist_ok=True)
     config = CalibrationConfig(str(Path(st.path).resolve()), stroke_hash(st),

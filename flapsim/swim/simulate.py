@@ -113,6 +113,10 @@ class SwimResult:
     target_xyz: np.ndarray | None = field(default=None, repr=False)
     aim_heading: np.ndarray | None = field(default=None, repr=False)
     body_yaw: np.ndarray | None = field(default=None, repr=False)
+    #: at each sample: the roll of the thorax (shoulders) and of the pelvis (hips) about
+    #: the body's long axis (the left side's rise above the horizontal) and the trunk's
+    #: incline (the pelvis-to-neck line above the horizontal) [rad]
+    carriage: np.ndarray | None = field(default=None, repr=False)
 
     def _steady(self) -> np.ndarray:
         t0 = SETTLE_CYCLES / self.rate_hz if self.seconds > 3 * SETTLE_CYCLES / self.rate_hz else 0
@@ -234,6 +238,17 @@ class SwimResult:
         """Forward distance per cycle [m]."""
         return self.speed / self.rate_hz
 
+    def _carriage_summary(self, sel: np.ndarray) -> dict:
+        """Roll to each side (half the range of the settled swim) of the shoulders and
+        hips, and the trunk's mean incline [deg] (Psycharakis & Sanders 2008; Zamparo et
+        al. 2009 measure these on swimmers)."""
+        if self.carriage is None or not len(self.carriage) or not sel.any():
+            return {}
+        c = np.degrees(self.carriage[sel])
+        return {"roll_shoulders_deg": float(0.5 * np.ptp(c[:, 0])),
+                "roll_hips_deg": float(0.5 * np.ptp(c[:, 1])),
+                "trunk_incline_deg": float(c[:, 2].mean())}
+
     def summary(self) -> dict:
         head_z = self.head[:, 2] - self.water_level
         com_z = self.com[:, 2] - self.water_level
@@ -268,10 +283,16 @@ class SwimResult:
             "hand_rules": self.hands,
             **self.tracking(),
             **self._target_summary(),
+            **self._carriage_summary(sel),
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
             "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
         }
+
+
+def _roll(d: mujoco.MjData, body: int) -> float:
+    """The angle of ``body``'s left axis (local y) above the horizontal [rad]."""
+    return math.asin(max(-1.0, min(1.0, float(d.xmat[body][7]))))
 
 
 def swim(
@@ -334,7 +355,8 @@ def swim(
     if st.cycle:
         try:
             table = cycle_table if cycle_table is not None else \
-                load_table(st, layers="all" if layers == "all" else "cycle")
+                load_table(st, layers="all" if layers == "all" else "cycle",
+                           body_shape=sw.params.body_shape)
             cyc = CycleLayer(layer, table, target=target, feedback=fb)
         except InputError:
             if target is not None and layers != "basic":
@@ -357,6 +379,8 @@ def swim(
     every = max(1, int(round(1.0 / (SAMPLE_HZ * dt))))
     control_every = max(1, int(round(0.02 / dt)))  # swimmer-induced flow at 50 Hz
     times, com, head, power = [], [], [], []
+    carriage: list[tuple[float, float, float]] = []  # roll of thorax, pelvis; incline [rad]
+    thorax = sw.body["thorax"]
     damp = m.dof_damping[6:].copy()
     head_gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head")
     pelvis = sw.body["pelvis"]
@@ -385,6 +409,8 @@ def swim(
                     power.append(float((d.qfrc_actuator[6:] - damp * qd) @ qd))
                     line = d.xpos[head_body] - d.xpos[pelvis]
                     yaw.append(math.atan2(line[1], line[0]))
+                    carriage.append((_roll(d, thorax), _roll(d, pelvis),
+                                     math.atan2(line[2], math.hypot(line[0], line[1]))))
                     if target is not None:
                         aim.append(target.heading(com[-1][:2].copy(), np.zeros(2), float(d.time)))
                         pos = getattr(target, "position", None)
@@ -411,6 +437,7 @@ def swim(
                             head.append(d.geom_xpos[head_gid].copy())
                             power.append(power[-1])
                             yaw.append(yaw[-1])
+                            carriage.append(carriage[-1])
                             if target is not None:
                                 aim.append(aim[-1])
                                 txyz.append(txyz[-1])
@@ -435,6 +462,6 @@ def swim(
                       hands=hands.summary() if (hands is not None and stack.mode == "all") else None,
                       target_xyz=np.asarray(txyz) if target is not None else None,
                       aim_heading=np.asarray(aim) if target is not None else None,
-                      body_yaw=np.asarray(yaw))
+                      body_yaw=np.asarray(yaw), carriage=np.asarray(carriage))
 
 

@@ -24,7 +24,7 @@ def test_video_follows_the_body(tmp_path):
     frames = np.tile(m.qpos0, (6, 1))
     frames[:, 0] = np.linspace(0, 3, 6)  # the ball flies 3 m: a fixed camera would lose it
     path = tmp_path / "v.mp4"
-    n = render_video(m, frames, path, fps=10, camera=ChaseCamera("ball", distance=1.0),
+    n = render_video(m, frames, path, fps=10, camera=ChaseCamera("ball", distance=1.0, lead_m=0.0),
                      width=160, height=120)
     assert n == 6 and path.exists()
     imgs = [f for f in imageio.get_reader(str(path))]  # noqa: C416 (len() is inf for mp4)

@@ -32,7 +32,8 @@ def _open_swim_viewer(xvfb_display, out: Path, seconds: float):
     app = xvfb_display.spawn(
         [sys.executable, "-m", "flapsim.cli.main", "swim", "--viewer", "--stroke", "crawl",
          "--seconds", f"{seconds:g}", "--layers", "basic", "--json", str(out)], env)
-    return app, xvfb_display.window(app, env, timeout=40), env
+    # the window opens at the first control step (after the kernels compile): slow under load
+    return app, xvfb_display.window(app, env, timeout=180), env
 
 
 def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
@@ -57,13 +58,14 @@ def test_viewer_steers_with_keys_under_xvfb(tmp_path, xvfb_display):
 
 
 def test_viewer_places_the_target_where_it_is_double_clicked_under_xvfb(tmp_path, xvfb_display):
-    # the paper's user places the target with the mouse. The tracking camera looks at the
-    # swimmer's centre from 3 m away, 15 deg above and from azimuth 30 deg (flapsim.render.viewer),
-    # so a double-click at the window's centre lands on the swimmer, or on the water along
-    # that bearing: past the swimmer while its centre is above the surface (at the start it
-    # floats high, ~0.4 m: 0.4 / tan 15 deg = 1.5 m past), short of it once under. Either
-    # way the target leaves 10 m ahead for a point within 3 m of the swimmer on the camera's
-    # line, and the swim's target is that point.
+    # the paper's user places the target with the mouse. The chase camera looks from behind
+    # the swimmer along its heading (+x at the start), 15 deg above, from 3 m, at a point 0.9 m
+    # ahead of its thorax (flapsim.render.viewer), so a double-click at the window's centre
+    # lands on the water along the heading: past that point while it is above the surface (at
+    # the start the swimmer floats high, ~0.4 m: 0.4 / tan 15 deg = 1.5 m past), short of it
+    # once under, or on the swimmer's back on the way. Either way the target leaves 10 m ahead
+    # for a point within 3 m of the swimmer on the camera's line, and the swim's target is
+    # that point.
     out = tmp_path / "v.json"
     app, window, env = _open_swim_viewer(xvfb_display, out, 6)
     _, _, w, h = xvfb_display.geometry(window, env)
@@ -77,10 +79,13 @@ def test_viewer_places_the_target_where_it_is_double_clicked_under_xvfb(tmp_path
     c = clicks[0]
     assert c["target"] == pytest.approx(c["click"][:2], abs=0.006)  # placed to the cm
     dx, dy = c["click"][0] - c["swimmer"][0], c["click"][1] - c["swimmer"][1]
-    assert 0.1 < np.hypot(dx, dy) < 3.0 and abs(c["click"][2]) < 1.0, c
-    # the bearing is the camera's (or its reverse); the centre of mass is not quite the
-    # camera's look-at point (the thorax's subtree), hence 25 deg
-    bearing = np.degrees(np.arctan2(dy, dx))
-    assert min(abs((bearing - b + 180) % 360 - 180) for b in (30.0, 210.0)) < 25.0, (bearing, c)
+    assert np.hypot(dx, dy) < 3.0 and abs(c["click"][2]) < 1.0, c
+    # the target left its place 10 m ahead for the point clicked
+    assert np.hypot(c["target"][0] - 10.0, c["target"][1]) > 6.0, c
+    if np.hypot(dx, dy) > 0.3:  # on the water, not on the swimmer's back: along the heading
+        # the bearing is the camera's (or its reverse); the centre of mass is not quite the
+        # camera's look-at point (the thorax's subtree), hence 25 deg
+        bearing = np.degrees(np.arctan2(dy, dx))
+        assert min(abs((bearing - b + 180) % 360 - 180) for b in (0.0, 180.0)) < 25.0, (bearing, c)
     assert s["viewer"]["final_target"] == c["target"]
     assert [s["target"]["x_m"], s["target"]["y_m"]] == c["target"]

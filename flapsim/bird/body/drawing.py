@@ -13,6 +13,7 @@ from flapsim.bird.body.feather_dynamics import ModalFeathers, _v, dove_feather_m
 from flapsim.bird.body.feather_modes import FeatherModes
 from flapsim.bird.body.model import build_xml
 from flapsim.bird.body.params import UNDERSIDE
+from flapsim.bird.body.plumage import dress
 from flapsim.core.errors import InputError, ModelError
 from flapsim.fluid.coefficients import CoefficientTable, get_table
 
@@ -49,16 +50,20 @@ class FeatherDrawing:
             raise InputError("FeatherDrawing draws a modal dove (Dove.load(feathers='modal'))")
         modes = dove_feather_modes(dove.params, dove.modal)
         engine = dove.modal.integration == "engine"
-        root = ET.fromstring(build_xml(dove.params, twist="tree") if engine else
-                             build_xml(dove.params, modal=dove.modal))
-        gone = {fm.name for fm in modes} | {fm.name + UNDERSIDE for fm in modes}
+        root = ET.fromstring(dress(build_xml(dove.params, twist="tree") if engine else
+                                   build_xml(dove.params, modal=dove.modal)))
+        # a bent feather's white tip would not bend with it: those go too
+        gone = ({fm.name for fm in modes} | {fm.name + UNDERSIDE for fm in modes}
+                | {fm.name + "_tip" for fm in modes})
         rgba = {}
-        for body in root.iter("body"):
-            for g in list(body.findall("geom")):
-                if g.get("name") in gone:
-                    body.remove(g)
         for g in range(dove.model.ngeom):
             rgba[mujoco.mj_id2name(dove.model, mujoco.mjtObj.mjOBJ_GEOM, g)] = dove.model.geom_rgba[g]
+        for body in root.iter("body"):
+            for g in list(body.findall("geom")):
+                if g.get("rgba") and g.get("name"):  # the species' colours
+                    rgba[g.get("name")] = np.array([float(v) for v in g.get("rgba").split()])
+                if g.get("name") in gone:
+                    body.remove(g)
         if engine:  # the coordinates, as display-only joints after every other one
             world = root.find("worldbody")
             for fm in modes:

@@ -61,6 +61,7 @@ from flapsim.bird.body.params import (
     rectrix_joints,
     rectrix_spread_gains,
 )
+from flapsim.bird.body.plumage import dress
 from flapsim.core.assets import asset_path
 from flapsim.core.errors import ModelError
 from flapsim.core.loading import load_model
@@ -666,11 +667,12 @@ class Dove:
         """What videos and the viewer draw: (a model, the index array ``ix`` with which a
         state's ``qpos[ix]`` is that model's ``qpos``). For the separate twist hinges
         (:meth:`twist_hinges`) it is this dove generated with the hinges in the primaries'
-        bodies, so MuJoCo draws them twisted; otherwise this model and the identity."""
+        bodies, so MuJoCo draws them twisted, in its species' colours with display-only
+        geoms (:func:`~flapsim.bird.body.plumage.dress`); otherwise this model and the identity."""
         if self.twist_hinges() is None:
             return self.model, np.arange(self.model.nq)
         if getattr(self, "_drawing", None) is None:
-            shown = load_model(build_xml(self.params, twist="tree"), is_xml=True)
+            shown = load_model(dress(build_xml(self.params, twist="tree")), is_xml=True)
             m = self.model
             ix = np.zeros(shown.nq, dtype=int)
             for j in range(shown.njnt):

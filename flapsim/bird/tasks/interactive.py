@@ -14,7 +14,13 @@ the simulation loop between wingbeats (the viewer's key callback only queues the
   the turn rate asked back to 0; the bird banks into the turn as for the keys);
 * Insert: a push of 6 N for 0.1 s from the left, at the trunk's centre of mass;
 * Delete: a 1-cosine gust of 3 m/s across the flight, 0.5 s;
-* Home: tracking / free camera.
+* Home: chase / free camera (the chase camera turns with the bird's heading);
+* Escape: close the viewer (the results are returned as when the time is up).
+
+A push is drawn as a red arrow into the trunk, a gust as a blue one, for a second. The
+first wingbeat (which compiles the force kernels) is flown before the window opens, with a
+line in the terminal instead of a loading screen; the overlay and the results give the
+achieved real-time factor.
 
 With a path (``path=``) the bird follows it instead (keys still push and gust) and the
 path is drawn. With modal feathers (``feathers="modal"``, with their own bundled database or
@@ -24,6 +30,7 @@ another trained on that dove) the feathers are drawn bent each frame
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -41,6 +48,7 @@ from flapsim.bird.tasks.path_control import PathTarget, start_on_path
 from flapsim.bird.tasks.path_shapes import straight
 from flapsim.fluid.flow import ROW, Gust
 from flapsim.render.viewer import (
+    FLASH_S,
     FRAME_S,
     KEY_DELETE,
     KEY_DOWN,
@@ -53,6 +61,7 @@ from flapsim.render.viewer import (
     KEY_RIGHT,
     KEY_UP,
     AnimalViewer,
+    Arrow,
     Marker,
     Polyline,
 )
@@ -117,7 +126,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
     fl, ctl = build_flight(Task(path if path is not None else _dummy_path(),
                                 flow=(Gust((0.0, 1.0, 0.0), 0.0, 0.0, GUST_S),), feathers=feathers),
                            db, method, k, **options)
-    view = None
+    view: AnimalViewer | None = None
     try:
         cmd = Command()
         cfg = FlightConfig(speed=cmd.speed)
@@ -138,7 +147,6 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         m, ix = fl.dove.drawing() if draw is None else (draw.model, draw.ix)
         shown = mujoco.MjData(m)
         _place(m, shown, fl.frame()[ix], draw)
-        view = AnimalViewer(m, shown, fl.dove.trunk, distance=1.4, launch=launch)
         items = [Polyline(path.point(np.linspace(0, path.length, 400)))] if path is not None else []
         dt = float(m.opt.timestep)
         stride = max(1, int(round(FRAME_S / dt)))
@@ -151,12 +159,17 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
         while fl.data.time < seconds:
             t = float(fl.data.time)
             push_now = False
-            for key in view.pending_keys():
+            for key in view.pending_keys() if view is not None else ():
                 p, g = cmd.apply(key, t)
                 push_now |= p
                 if g:
+                    h = float(np.arctan2(v_prev[1], v_prev[0]))
                     _gust(fl, t, v_prev)
-            for point in view.pending_clicks():
+                    # the gust blows from the left: a blue arrow toward the bird
+                    across = np.array([-np.sin(h), np.cos(h), 0.0])
+                    view.flash(Arrow(e_pos(fl) + 0.9 * across, -0.6 * across, width=0.025,
+                                     rgba=(0.15, 0.45, 1.0, 1.0)), t, GUST_S + FLASH_S)
+            for point in view.pending_clicks() if view is not None else ():
                 if isinstance(target, CruiseTarget):  # a path is followed, not steered
                     _fly_toward(target, cmd, point, positions[-1], t)
                     # where it was sent, drawn on the ground until the next click
@@ -166,6 +179,9 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 heading = float(np.arctan2(v_prev[1], v_prev[0]))
                 force = PushSpec(t, PUSH_N, "left").world_force(heading)
                 push = cycle.Push(fl.dove.trunk, force, int(round(0.1 / dt)))
+                # a red arrow along the push, ending at the trunk, 0.1 m per newton
+                f = np.asarray(force, float)
+                view.flash(Arrow(e_pos(fl) - 0.1 * f, 0.1 * f * 0.9, width=0.025), t)
             if isinstance(target, CruiseTarget):
                 # the commands integrate into the cruise target's heading and altitude
                 target.speed = cmd.speed
@@ -174,8 +190,16 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             else:
                 target.speed = cmd.speed
                 target.begin(fl.data.qpos[0:3], v_prev)
+            if view is None:
+                print("flapsim view: dove and controller loaded; flying the first wingbeat "
+                      "(compiling the force kernels)...", file=sys.stderr, flush=True)
             step = ctl.choose(target, record=True, push=push)
             e = step.end
+            if view is None:  # the window opens on a flying bird, not on a loading screen
+                print(f"flapsim view: opening the viewer ({time.perf_counter() - wall0:.1f} s "
+                      "to load); Esc closes it", file=sys.stderr, flush=True)
+                view = AnimalViewer(m, shown, fl.dove.trunk, distance=1.4, launch=launch)
+                wall0 = time.perf_counter()
             v_prev = e.com_vel
             headings.append(float(np.arctan2(e.com_vel[1], e.com_vel[0])))
             max_wind = max(max_wind, float(np.linalg.norm(
@@ -189,20 +213,20 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 _place(m, shown, q[ix], draw)
                 steer = ("following the path\n-" if path is not None else
                          f"{cmd.turn_rate_deg_s:+.0f} deg/s\n{cmd.climb_deg:+.0f} deg")
-                texts = ("steering\nelevation\nspeed\nwind\nkeys\n\n",
+                texts = ("steering\nelevation\nspeed\nwind\nkeys\n",
                          f"{steer}\n"
                          f"{np.linalg.norm(e.com_vel):.2f} m/s (asked {cmd.speed:.2f})\n"
                          f"{_wind_text(fl, shown.time)}\n"
                          "arrows: steer/climb, PgUp/PgDn: speed, End: level,\n"
-                         "double-click: fly toward it, Insert: push, Delete: gust,\n"
-                         "Home: camera")
+                         "double-click: fly toward it, Insert: push, Delete: gust")
                 if not view.show(shown.time, items, texts):
                     running = False
                     break
             if not running:
-                status = "window closed"
+                status = "closed by Escape" if view.closed_by else "window closed"
                 break
         wall = time.perf_counter() - wall0
+        rtf = view.real_time_factor if view is not None else None
     finally:
         if view is not None:
             view.close()
@@ -217,6 +241,7 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                               "speed": cmd.speed},
             "pushes": cmd.pushes, "gusts": cmd.gusts, "events": cmd.events,
             "max_wind_m_s": max_wind,
+            "real_time_factor": rtf,
             "wingbeats": len(headings) - 1}
 
 
@@ -237,6 +262,11 @@ def _place(m: mujoco.MjModel, shown: mujoco.MjData, qpos: np.ndarray, draw) -> N
     if draw is not None:
         draw.apply(shown)
     mujoco.mj_forward(m, shown)
+
+
+def e_pos(fl) -> np.ndarray:
+    """The trunk's position now, m."""
+    return fl.data.qpos[0:3].copy()
 
 
 def _dummy_path():

@@ -1,11 +1,14 @@
-"""``flapsim animate --gait NAME``: kinematic modal gaits of the dog and the human
-(Kry et al. 2009, sections 4.2-4.3, Fig. 3), with modes picked by heuristics A-G."""
+"""``flapsim animate [MODEL.xml] --gait NAME``: kinematic modal gaits of the dog, the human
+or any legged MJCF (Kry et al. 2009, sections 4.2-4.3 and 5.1, Fig. 3), with modes picked
+by heuristics A-G or read from a gait file."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -15,12 +18,32 @@ from flapsim.core.validate import add_input_arg, add_output_arg, quantity
 from flapsim.modal import animate as anim_mod
 from flapsim.modal.browser import ModeBrowser, contact_sheet
 from flapsim.modal.bvh import write_bvh
-from flapsim.modal.gaits import GAITS, MODELS, gait, head_orientation_error, plan_gait, resolve_model
-from flapsim.modal.heuristics import CATEGORY_NAMES
+from flapsim.modal.gaits import (
+    GAITS,
+    MODELS,
+    cycle_seconds,
+    gait,
+    gait_file_of,
+    head_orientation_error,
+    plan_from_file,
+    plan_gait,
+    resolve_model,
+)
+from flapsim.modal.heuristics import CATEGORY_NAMES, has_convention_labels
+from flapsim.modal.own import (
+    GaitFile,
+    apply_stiffness_edits,
+    feet_of,
+    foot_phases_deg,
+    foot_tracks,
+    parse_stiffness_edits,
+    prepare,
+    travel_root,
+)
 from flapsim.modal.stiffness import tune_stiffness
 from flapsim.modal.video import render_poses
 
-HELP = "kinematic modal gait (walk, run, trot, ...) of the dog or human: npz, video, BVH"
+HELP = "kinematic modal gait (walk, run, trot, ...) of the dog, human or any legged MJCF"
 SEED_HELP = "accepted for uniformity; the animation is deterministic, --seed changes nothing"
 
 #: The most frames one animation may have (--seconds x --fps): the trajectory is held in
@@ -29,9 +52,31 @@ MAX_FRAMES = 100_000
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--gait", default="walk",
-                   help="gait: trot, amble, gallop (dog); walk, run, jump, jumping_jacks, "
-                   "run_head, push_cart (human); 'list' shows them (default walk)")
+    p.add_argument("model_file", nargs="?", default=None, metavar="MODEL.xml",
+                   help="your own legged MJCF: legs, knees and hips are found from its tree "
+                   "(same as --model PATH)")
+    p.add_argument("--gait", default=None,
+                   help="gait: trot, amble, gallop (dog, quadrupeds); walk, run, jump, "
+                   "jumping_jacks, run_head, push_cart (human, bipeds); 'list' shows them "
+                   "(default walk; trot for your own quadruped)")
+    add_input_arg(p, "--labels", default=None, metavar="TOML",
+                  help="label file overriding the feet, knees, hands, head or forward found "
+                  "from the tree")
+    p.add_argument("--flex-knees-deg", type=quantity("angle_deg"), default=None,
+                   help="flex the knees of your own model's rest pose by this much (0: keep "
+                   "its pose; default: 30 when straight legs give the feet no vertical motion)")
+    p.add_argument("--no-tune", action="store_true",
+                   help="your own model: skip the stiffness scaling that carries its weight")
+    p.add_argument("--stiffness", action="append", default=None, metavar="JOINT=SCALE",
+                   help="multiply one joint's stiffness (repeatable; the paper's style edits)")
+    add_output_arg(p, "--save-gait", kinds=(".toml",), metavar="TOML",
+                   help="write the gait (modes, amplitudes, phases, offsets, stride, hip sway, "
+                   "posture) as a gait file to edit")
+    add_input_arg(p, "--gait-file", default=None, metavar="TOML",
+                  help="play an (edited) gait file instead of the heuristics' choice")
+    p.add_argument("--travel", action="store_true",
+                   help="move the root from the stance feet so the creature travels (npz, "
+                   "BVH and video carry it); reports each foot's slip")
     add_input_arg(p, "--model", may_be_name=True, default=None,
                   help="dog, human, human_cart or an MJCF path with the labels the heuristics "
                    "read (default: the gait's own creature)")
@@ -70,23 +115,78 @@ def _list() -> dict:
                                "description": g.description} for g in GAITS.values()}}
 
 
+def _own_or_bundled(args: argparse.Namespace, gfile: GaitFile | None):
+    """The model, its label and whether it goes through the own-creature setup."""
+    if args.model_file and args.model and args.model_file != args.model:
+        raise InputError("give the model once: MODEL.xml or --model, not both")
+    spec = args.model_file or args.model
+    if spec is None:
+        name = args.gait or (gfile.name if gfile and gfile.name in GAITS else "walk")
+        spec = gait(name).model if name != "list" else "human"
+    model, label = resolve_model(spec)
+    own = spec not in MODELS and (args.labels is not None or not has_convention_labels(model))
+    return model, label, spec, own
+
+
 def run(args: argparse.Namespace) -> dict:
     if args.gait == "list":
         return _list()
-    g = gait(args.gait)
     frames = int(round(args.seconds * args.fps))
     if frames > MAX_FRAMES:
         raise InputError(f"--seconds {args.seconds:g} at --fps {args.fps:g} is {frames} frames; at "
                          f"most {MAX_FRAMES} (the trajectory is held in memory): shorten it or "
                          "lower --fps")
-    spec = args.model or g.model
-    if spec in MODELS and spec != g.model and not (spec == "human_cart" and g.model == "human"):
-        raise InputError(f"gait {g.name!r} is for --model {g.model}, not {spec}")
-    model, label = resolve_model(spec)
+    gfile = GaitFile.read(args.gait_file) if args.gait_file else None
+    model, label, spec, own_flow = _own_or_bundled(args, gfile)
+    edits = dict(gfile.stiffness) if gfile else {}
+    for k, v in parse_stiffness_edits(args.stiffness).items():
+        edits[k] = edits.get(k, 1.0) * v
+    if args.labels and not own_flow:
+        raise InputError("--labels applies to your own model file, not a bundled creature")
 
+    own = None
     scale = args.stiffness_scale
     tuning = None
-    if args.tune_stiffness:
+    if own_flow:
+        flex = gfile.knee_flex_deg if gfile else args.flex_knees_deg
+        own = prepare(model, label_file=args.labels, knee_flex_deg=flex,
+                      tune=not (args.no_tune or gfile), stiffness_edits=edits)
+        scale = gfile.stiffness_scale if gfile else scale * own.stiffness_scale
+        tuning = own.tuning
+        kind = "quadruped" if own.legs.quadruped else "biped"
+        print(f"{label}: a {kind}; feet " + ", ".join(
+            f"{g.role} {g.foot_name} (knee {g.knee}, hip {'/'.join(g.hip)})" for g in own.legs.legs))
+        print(f"rest pose: {own.flex_reason}")
+        if own.tuning is not None:
+            if own.tuning["holds"]:
+                print(f"stiffness: x{own.stiffness_scale:.3g} is the smallest uniform scale that "
+                      f"carries its weight ({own.tuning['trials']} simulations)")
+            else:
+                print(f"stiffness: no scale up to 64x holds the pose ({own.tuning['why']}); "
+                      "kept x1 (the gait is kinematic)")
+        if own.stiffness_edits:
+            print("stiffness edits: " + ", ".join(f"{k} x{v:g}" for k, v in edits.items()))
+    else:
+        apply_stiffness_edits(model, edits)
+        if gfile is not None:
+            scale = gfile.stiffness_scale
+
+    if own is not None:
+        default = "trot" if own.legs.quadruped else "walk"
+    else:
+        default = "walk"
+    g = gait(args.gait or (gfile.name if gfile and gfile.name in GAITS else default))
+    if own is not None:
+        kind = "quadruped" if own.legs.quadruped else "biped"
+        if g.kind != kind:
+            names = [n for n, x in GAITS.items()
+                     if x.kind == kind and not x.constraints and x.model != "human_cart"]
+            raise InputError(f"gait {g.name!r} is for a {g.kind}, and {label} is a {kind} "
+                             f"({len(own.legs.legs)} feet): use {', '.join(names)}")
+    elif spec in MODELS and spec != g.model and not (spec == "human_cart" and g.model == "human"):
+        raise InputError(f"gait {g.name!r} is for --model {g.model}, not {spec}")
+
+    if args.tune_stiffness and not own_flow:
         keyframe = g.keyframe if g.keyframe and _has_key(model, g.keyframe) else None
         res = tune_stiffness(model, keyframe=keyframe)
         scale *= res.scale
@@ -97,8 +197,12 @@ def run(args: argparse.Namespace) -> dict:
         print(f"stiffness tuning: smallest scale holding the rest pose = {res.scale:.3g} "
               f"(x{res.failing_scale:.3g} sags more than 10 deg), {len(res.trials)} simulations")
 
-    plan = plan_gait(model, g, stiffness_scale=scale, amplitude_scale=args.amplitude_scale,
-                     freq_hz=args.freq)
+    labels = own.labels if own is not None else None
+    if gfile is not None:
+        plan = plan_from_file(model, g, gfile, scale, labels, args.amplitude_scale)
+    else:
+        plan = plan_gait(model, g, stiffness_scale=scale, amplitude_scale=args.amplitude_scale,
+                         freq_hz=args.freq, labels=labels)
     a = plan.analysis
     n = max(int(round(args.seconds * args.fps)), 2)
     times = np.arange(n) / args.fps
@@ -151,6 +255,40 @@ def run(args: argparse.Namespace) -> dict:
         "constraint_residual": anim.constraint_residual,
         "checks": checks,
     }
+    if spec not in MODELS:
+        out["model_file"] = str(Path(spec).resolve())
+    if own is not None:
+        out["own_creature"] = own.report(model)
+    out["modes_used"] = [{k: c[k] for k in ("mode", "categories", "mode_sign", "amplitude",
+                                            "phase_deg", "freq_hz", "beta")} for c in plan.chosen]
+    out["substituted"] = plan.substituted
+    lab = plan.selection.labels
+    tracks, roots = foot_tracks(model, anim.qpos, feet_of(lab), lab.root_body)
+    fwd_rel = (tracks - roots[:, None, :]) @ lab.forward
+    period = cycle_seconds(plan)
+    phases = foot_phases_deg(times, fwd_rel, 1.0 / period)
+    out["foot_phase_deg"] = {name: float(ph) for name, ph in zip(lab.foot_names, phases, strict=True)}
+    out["stride_m"] = {name: float(np.ptp(fwd_rel[:, i])) for i, name in enumerate(lab.foot_names)}
+    print("foot phase (deg, when the foot is farthest forward): " + ", ".join(
+        f"{k} {v:.0f}" for k, v in out["foot_phase_deg"].items()))
+    if args.travel:
+        tr = travel_root(model, anim.qpos, lab, a.rest_qpos)
+        anim = dataclasses.replace(anim, qpos=tr.qpos)
+        out["travel"] = {"distance_m": tr.distance_m, "max_slip_m": tr.max_slip_m,
+                         "max_leg_correction_deg": math.degrees(tr.max_leg_correction_rad),
+                         "slip_per_foot_m": dict(zip(lab.foot_names, tr.slip_per_foot_m, strict=True)),
+                         "stance_fraction": dict(zip(lab.foot_names, tr.stance_fraction, strict=True))}
+        print(f"travel: root moved {tr.distance_m:+.3f} m; largest stance-foot slip "
+              f"{100 * tr.max_slip_m:.2f} cm (legs corrected by up to "
+              f"{math.degrees(tr.max_leg_correction_rad):.1f} deg)")
+    if args.save_gait:
+        # a played gait file's amplitudes already carry --amplitude-scale
+        gf = gait_file_of(plan, 1.0 if gfile else args.amplitude_scale,
+                          knee_flex_deg=own.knee_flex_deg if own else 0.0,
+                          stiffness_scale=scale, stiffness=edits)
+        gf.write(args.save_gait)
+        print(f"gait file -> {args.save_gait}")
+        out["gait_file"] = args.save_gait
     if args.npz:
         anim_mod.save_trajectory(args.npz, model, anim)
         print(f"trajectory -> {args.npz}")

@@ -1,4 +1,5 @@
-"""``flapsim creature --model loop|linear``: a simple creature driven by its two lowest modes."""
+"""``flapsim creature [MODEL.xml] --model loop|linear|PATH``: a creature driven by its two
+lowest modes (the paper's dynamic creatures), bundled or any model with actuated joints."""
 
 from __future__ import annotations
 
@@ -7,15 +8,25 @@ import math
 
 from flapsim.core.errors import InputError
 from flapsim.core.validate import add_output_arg, quantity
-from flapsim.modal.creatures import CREATURES, load_creature, run_creature, with_gait
+from flapsim.modal.creatures import (
+    CREATURES,
+    is_model_file,
+    load_creature,
+    run_creature,
+    with_gait,
+)
 from flapsim.modal.video import render_poses
 
-HELP = "simulate the loop or linear creature driven by its two lowest modes; report distance"
+HELP = "simulate a creature (loop, linear or your MJCF) driven by its two lowest modes"
 SEED_HELP = "accepted for uniformity; the creature is deterministic, --seed changes nothing"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", default="loop", help="which creature: loop or linear (default loop)")
+    p.add_argument("model_file", nargs="?", default=None, metavar="MODEL.xml",
+                   help="your own MJCF with a motor on each joint the modes move "
+                   "(same as --model PATH)")
+    p.add_argument("--model", default=None,
+                   help="which creature: loop, linear or an MJCF path (default loop)")
     p.add_argument("--seconds", type=quantity("seconds"), default=10.0,
                    help="simulated seconds of driven motion (default 10)")
     p.add_argument("--amplitude-deg", type=quantity("angle_deg"), default=None,
@@ -33,8 +44,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> dict:
-    if args.model not in CREATURES:
-        raise InputError(f"unknown creature {args.model!r}; choose one of {', '.join(CREATURES)}")
+    if args.model_file and args.model and args.model_file != args.model:
+        raise InputError("give the model once: MODEL.xml or --model, not both")
+    args.model = args.model_file or args.model or "loop"
+    if args.model not in CREATURES and not is_model_file(args.model):
+        raise InputError(f"unknown creature {args.model!r}; choose one of {', '.join(CREATURES)} "
+                         "or give an MJCF file")
     gait = with_gait(
         args.model,
         amplitude_rad=None if args.amplitude_deg is None else math.radians(args.amplitude_deg),
@@ -62,6 +77,8 @@ def run(args: argparse.Namespace) -> dict:
         f"{r['simulated_s']:.3g} s; horizontal {r['distance_horizontal_body_lengths']:.2f} BL; "
         f"mean speed {r['mean_speed_m_s']:+.3f} m/s"
     )
+    if r["model_file"] not in ("loop.xml", "linear.xml"):
+        print(f"model: {r['model_file']}")
     print(f"real-time factor {r['realtime_factor']:.1f} (simulated s per wall s)")
     if args.video and frames is not None:
         n = render_poses(model, list(frames), args.video, fps=fps, track=True)

@@ -10,7 +10,13 @@ from pathlib import Path
 
 from flapsim import scenarios
 from flapsim.bird.tasks.path_control import load_path
-from flapsim.cli.options import add_controller_arguments, controller_options, writable_dir
+from flapsim.cli.options import (
+    add_controller_arguments,
+    add_video_arguments,
+    controller_options,
+    video_size,
+    writable_dir,
+)
 from flapsim.core.errors import InputError
 from flapsim.core.parallel import usable_cores
 from flapsim.core.validate import add_input_arg, address_problem, require_gl
@@ -67,7 +73,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--address", default=None, help="Ray cluster to join")
     p.add_argument("--plots", metavar="DIR", default=None,
                    help="write a PNG per run: path against flown trajectory, metrics per wingbeat")
-    p.add_argument("--video", metavar="DIR", default=None, help="write an mp4 per run (chase camera)")
+    p.add_argument("--video", metavar="DIR", default=None,
+                   help="write an mp4 per run: the path drawn, the flight as a fading trail, "
+                        "trees and flock mates, an overlay (see --camera, --fps, --slowmo)")
+    add_video_arguments(p, slowmo_default="1: real time")
     p.add_argument("--quick", action="store_true",
                    help="short variants of every scenario (smoke runs; numbers not comparable)")
     p.add_argument("--starts", type=int, default=1, metavar="N",
@@ -184,7 +193,9 @@ def run(args: argparse.Namespace) -> dict:
                                  predict=args.predict, controller=controller,
                                  path_control=path_control, speed=speed, layers=args.layers,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
-                                 seed=args.seed, path_file=args.path, quick=args.quick)
+                                 seed=args.seed, path_file=args.path, quick=args.quick,
+                                 fps=args.fps, size=video_size(args), slowmo=args.slowmo,
+                                 camera=args.camera)
     if args.table1:
         if args.starts != 1:
             raise InputError("--table1 flies one start per database; drop --starts")

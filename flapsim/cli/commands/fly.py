@@ -22,8 +22,13 @@ from flapsim.bird.flight.power import power_budget
 from flapsim.bird.flight.video import dove_video
 from flapsim.bird.flight.wingbeat import p0, with_tail_bias
 from flapsim.bird.tasks.flight_tasks import Task, fly_task
-from flapsim.bird.tasks.path_control import load_path
-from flapsim.cli.options import add_controller_arguments, controller_options
+from flapsim.bird.tasks.path_control import FlightPath, load_path
+from flapsim.cli.options import (
+    add_controller_arguments,
+    add_video_arguments,
+    controller_options,
+    video_options,
+)
 from flapsim.core.errors import InputError
 from flapsim.core.io import save_npz
 from flapsim.core.validate import add_input_arg, add_output_arg, quantity
@@ -73,8 +78,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "and the dampers take it (feather drag by stroke and angle of attack), "
                         "the cost of transport (flapsim.bird.flight.power; rigid feathers; the flight "
                         "is flown again step by step for it)")
-    p.add_argument("--fps", type=quantity("fps"), default=30.0, help="video frames per second")
-    p.add_argument("--size", default="640x480", help="video size WxH (default 640x480)")
+    add_video_arguments(p, slowmo_default="at least 3 s of video")
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -164,7 +168,9 @@ def run(args: argparse.Namespace) -> dict:
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        n = dove_video(dove, flight.qpos, args.video, args.fps, width, height)
+        n = dove_video(dove, flight.qpos, args.video, args.fps, width, height,
+                       **video_options(args), wingbeat_times=np.arange(args.wingbeats)
+                       / metrics["wingbeat_hz"])
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
     return result
@@ -274,7 +280,12 @@ def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, h
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        n = dove_video(Dove.load(feathers=args.feathers), r.qpos, args.video, args.fps, width, height)
+        path_points = extra.get("path_points")
+        path = FlightPath(path_points) if path_points is not None else None
+        n = dove_video(Dove.load(feathers=args.feathers), r.qpos, args.video, args.fps, width, height,
+                       **video_options(args), path_points=None if path is None else
+                       path.point(np.linspace(0.0, path.length, 600)), wingbeat_times=r.times,
+                       metric=None if path is None else ("distance from path", path.distance))
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video
 
@@ -294,6 +305,7 @@ def _write_outputs(args: argparse.Namespace, dove, flight, result: dict, width: 
         print(f"trajectory written to {args.out}")
         result["out"] = args.out
     if args.video:
-        n = dove_video(dove, qpos, args.video, args.fps, width, height)
+        n = dove_video(dove, qpos, args.video, args.fps, width, height, **video_options(args),
+                       wingbeat_times=getattr(flight, "times", None))
         print(f"video written to {args.video} ({n} frames)")
         result["video"] = args.video

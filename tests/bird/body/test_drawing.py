@@ -3,6 +3,7 @@ from the warp) against the imposed modal deflection, a rendered frame, and the v
 per-frame drawing during a flight."""
 
 import contextlib
+import copy
 import types
 
 import mujoco
@@ -116,8 +117,15 @@ def _render_rest_and_bent(out: str) -> None:
     mujoco.mj_forward(model, d)
     cam.lookat[:] = d.xpos[dove.trunk]
     cam.distance, cam.elevation, cam.azimuth = 0.6, -30.0, 150.0
+    # the rigid meshes in the same dress (colours, sky, light), less the white tail tips the
+    # bent drawing leaves out (they would not bend with their feathers)
+    rigid, rix = dove.drawing()
+    rigid = copy.deepcopy(rigid)
+    for g in range(rigid.ngeom):
+        if (mujoco.mj_id2name(rigid, mujoco.mjtObj.mjOBJ_GEOM, g) or "").endswith("_tip"):
+            rigid.geom_rgba[g, 3] = 0.0
     images = []
-    for m, q, h in ((dove.model, dove.model.qpos0, None), (model, qpos, hook), (model, bent, hook)):
+    for m, q, h in ((rigid, dove.model.qpos0[rix], None), (model, qpos, hook), (model, bent, hook)):
         r = mujoco.Renderer(m, 480, 640)
         try:
             dd = mujoco.MjData(m)
