@@ -314,6 +314,7 @@ def swim(
     rules: tuple[str, ...] | None = None,
     cycle_table: object | None = None,
     hand_params: object | None = None,
+    speed: float | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
@@ -325,7 +326,9 @@ def swim(
     also the continuous layer: the hand rules ``rules`` (default both, see
     :mod:`flapsim.swim.continuous`) and the stroke's feedback rules (its
     ``[perturb.*]`` sections: treading water's balance) at 50 Hz. ``feedback=False``
-    (older API) means "basic". ``cycle_table``: a :class:`flapsim.swim.per_cycle.CycleTable`
+    (older API) means "basic". ``speed`` [m/s]: the per-cycle layer sets each cycle's stroke
+    rate to hold it (:class:`flapsim.swim.per_cycle.CycleLayer`). ``cycle_table``: a
+    :class:`flapsim.swim.per_cycle.CycleTable`
     instead of the stroke's own. ``hand_params``: a
     :class:`flapsim.swim.continuous.HandRuleParams` instead of the defaults.
     ``target``: a heading, a point (with a depth: 3D), waypoints, a timed trajectory or
@@ -350,6 +353,9 @@ def swim(
     if target is not None and layers != "basic" and not steering:
         raise InputError(f"stroke {st.name!r} cannot steer: it has no [cycle.yaw_*] sequences "
                          "(crawl, breaststroke and treading have)")
+    if speed is not None and layers == "basic":
+        raise InputError("a speed asked is held by the per-cycle layer: use layers 'cycle' or "
+                         "'all', not 'basic'")
     fb = FeedbackLayer(layer, target=target) if st.perturbations else None
     cyc = None
     if st.cycle:
@@ -357,9 +363,9 @@ def swim(
             table = cycle_table if cycle_table is not None else \
                 load_table(st, layers="all" if layers == "all" else "cycle",
                            body_shape=sw.params.body_shape)
-            cyc = CycleLayer(layer, table, target=target, feedback=fb)
+            cyc = CycleLayer(layer, table, target=target, feedback=fb, speed=speed)
         except InputError:
-            if target is not None and layers != "basic":
+            if (target is not None or speed is not None) and layers != "basic":
                 raise
             log.warning("stroke %s has no per-cycle calibration table: the per-cycle layer is "
                         "off", st.name)
