@@ -29,7 +29,7 @@ from flapsim.core.assets import asset_path
 from flapsim.core.callbacks import DISPATCHER, Registration
 from flapsim.core.errors import InputError, ModelError, SimulationError
 from flapsim.fluid.buoyancy import Buoyancy, BuoyancyParams
-from flapsim.fluid.coefficients import hoerner_plate
+from flapsim.fluid.coefficients import hoerner_plate, rounded_surface
 from flapsim.fluid.flow import FlowField
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
 
@@ -73,6 +73,19 @@ class SwimmerParams:
     hide_joint_faces: bool = True
     #: normal drag coefficient of the AR-0.2 plate at 90 deg (Hoerner: 1.17 square .. 1.98 2-D)
     cd_normal: float = 1.2
+    #: hydrodynamic surface: "box" (the paper's 16 boxes; the strokes and steering are
+    #: tuned on it) or "rounded" (elliptic tubes with ellipsoidal shoulders and head, flat
+    #: hands and feet: a towed person's drag, see flapsim.swim.tow)
+    body_shape: str = "box"
+    #: stagnation pressure coefficient of the rounded ends (the head, the shoulders): 0.6
+    #: makes them a bullet's nose, CD 0.5 x 0.6 = 0.30 on the frontal area (a bullet-shaped
+    #: body of revolution, CD 0.295, Hoerner 1965; the engine has no base suction, so the
+    #: whole body's drag sits on its front); 1 (exact stagnation) would make the head an
+    #: isolated sphere (CD 0.5, measured 0.47)
+    cp_nose: float = 0.6
+    #: stagnation pressure coefficient of the tubes' sides, trunk and limbs (1.8: a
+    #: cylinder in cross flow CD 1.2, Hoerner 1965's 1.0-1.2 at Re 1e4-2e5)
+    cp_tube: float = 1.8
     #: "pool" (floor 3 m down, visible water) or "bare" (swimmer.xml only)
     world: str = "pool"
     #: physics timestep [s]; 4 ms is stable with the PD gains of flapsim.swim.muscles
@@ -84,6 +97,11 @@ class SwimmerParams:
                              f"{self.lung_volume_l}")
         if not (self.water_density > 0 and math.isfinite(self.water_density)):
             raise InputError(f"water_density must be > 0 kg/m^3, got {self.water_density}")
+        if self.body_shape not in ("rounded", "box"):
+            raise InputError(f"body_shape must be 'rounded' or 'box', got {self.body_shape!r}")
+        if not (0.5 <= self.cp_nose <= 2.0 and 0.5 <= self.cp_tube <= 2.0):
+            raise InputError("cp_nose and cp_tube must be 0.5..2 (stagnation pressure "
+                             "coefficients: 1 exact, up to ~2 with a bluff body's wake)")
         if self.world not in ("pool", "bare"):
             raise InputError(f"world must be 'pool' or 'bare', got {self.world!r}")
         if not (1e-4 <= self.timestep <= 0.01):
@@ -95,8 +113,9 @@ class SwimmerParams:
 
 
 def load_swimmer_model(lung_volume_l: float = XML_LUNG_L, world: str = "pool",
-                       timestep: float | None = None) -> mujoco.MjModel:
-    """Compile the swimmer with the upper trunk holding ``lung_volume_l`` litres of air.
+                       timestep: float | None = None, skin: bool = False) -> mujoco.MjModel:
+    """Compile the swimmer with the upper trunk holding ``lung_volume_l`` litres of air;
+    ``skin`` draws the rounded segments (see :func:`_add_skin`) instead of the boxes.
 
     The thorax box keeps its length and width:depth ratio and its mass; its volume is
     its cadaveric volume (mass / 1044 kg/m^3) plus the lungs.
@@ -116,9 +135,39 @@ def load_swimmer_model(lung_volume_l: float = XML_LUNG_L, world: str = "pool",
         spec.option.timestep = timestep
     with DISPATCHER.suspended():
         try:
-            return spec.compile()
+            model = spec.compile()
+            if skin:
+                _add_skin(spec, model)
+                model = spec.compile()
+            return model
         except ValueError as exc:  # pragma: no cover - the shipped file compiles
             raise ModelError(f"cannot compile {path}: {exc}") from None
+
+
+def _add_skin(spec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
+    """Draw the rounded segments the water sees (:func:`rounded_segments`), each a convex
+    mesh of its tessellation on its body, massless and without contacts; their boxes, which
+    keep the mass, inertia and contacts, become invisible."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    for name, seg in rounded_segments(model).items():
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        xpos, xR = data.xpos[b], data.xmat[b].reshape(3, 3)
+        verts = np.concatenate([q for q, _ in tessellate(seg, 0.06, 24, 6)])
+        verts = np.unique(np.round((verts - xpos) @ xR, 9), axis=0)
+        mesh = spec.add_mesh()
+        mesh.name = f"{name}_skin"
+        mesh.uservert = verts.ravel().tolist()
+        g = spec.body(name).add_geom()
+        g.name = f"{name}_skin"
+        g.type = mujoco.mjtGeom.mjGEOM_MESH
+        g.meshname = mesh.name
+        g.mass = 0.0
+        g.contype = 0
+        g.conaffinity = 0
+        box = spec.geom(name)
+        g.rgba = list(box.rgba)
+        box.rgba = [box.rgba[0], box.rgba[1], box.rgba[2], 0.0]
 
 
 # -- polygons --------------------------------------------------------------------------
@@ -253,6 +302,167 @@ def swimmer_polygons(model: mujoco.MjModel, patch_length: float = 0.12,
     return PolygonSet.concat(sets)
 
 
+# -- the rounded body -------------------------------------------------------------------
+#: segments drawn and wetted as flat plates (the hand's paddle, the foot's fin)
+FLAT_SEGMENTS = ("hand_l", "hand_r", "foot_l", "foot_r")
+#: which ends of a segment are rounded (top, bottom) in the standing zero pose; the
+#: others continue into their neighbour: the trunk is one tube from the hips to the
+#: shoulders, each limb one tube from shoulder to wrist and hip to ankle, so a flat end has
+#: no wetted surface (the steps of 1-3 cm between neighbouring cross sections and the bend
+#: of a joint are not modelled as ledges or gaps). Rounded: the shoulders (the thorax's
+#: top and the upper arms' heads) and the head.
+_ROUNDED_ENDS = {"thorax": (True, False), "head": (True, True), "upper_arm_l": (True, False),
+                 "upper_arm_r": (True, False)}
+#: coefficient table of each kind of surface (see Swimmer): the hands' and feet's plates,
+#: the rounded ends (a nose in the flow along the body), the tubes' sides (a cylinder in
+#: the flow across it)
+TABLE_PLATE, TABLE_NOSE, TABLE_TUBE = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class RoundedSegment:
+    """A segment's rounded solid, in the standing zero pose (world axes, long axis z):
+    an elliptic cylinder with half-ellipsoid caps at its rounded ends."""
+
+    name: str
+    #: centre of the segment's box [m]
+    center: np.ndarray
+    #: cross-section semi-axes along x and y [m]: the box's cross-section area (x 2/sqrt(pi))
+    rx: float
+    #: see rx
+    ry: float
+    #: half length along z [m] (the box's)
+    hz: float
+    #: length of each cap along z [m]
+    cap: float
+    #: (top, bottom) rounded; a flat end has no surface (it continues into a neighbour)
+    rounded: tuple[bool, bool]
+
+    def inside(self, p: np.ndarray) -> bool:
+        """Whether the point ``p`` (world, zero pose) is strictly inside the solid."""
+        d = np.asarray(p, dtype=float) - self.center
+        if abs(d[2]) >= self.hz:
+            return False
+        zc = 0.0
+        top = d[2] > 0
+        if self.rounded[0 if top else 1]:
+            zc = max(0.0, abs(d[2]) - (self.hz - self.cap)) / self.cap
+        return (d[0] / self.rx) ** 2 + (d[1] / self.ry) ** 2 + zc * zc < 1.0 - 1e-9
+
+    def point(self, z: float, r: float, phi: float) -> np.ndarray:
+        return self.center + np.array([self.rx * r * math.cos(phi),
+                                       self.ry * r * math.sin(phi), z])
+
+
+def rounded_segments(model: mujoco.MjModel) -> dict[str, RoundedSegment]:
+    """Every segment but the flat hands and feet as a :class:`RoundedSegment`, from its box."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    out = {}
+    for name in SEGMENTS:
+        if name in FLAT_SEGMENTS:
+            continue
+        gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+        if gid < 0:
+            raise ModelError(f"swimmer model has no box geom {name!r}")
+        R = data.geom_xmat[gid].reshape(3, 3)
+        if not np.allclose(np.abs(R), np.eye(3), atol=1e-9):
+            raise ModelError(f"box {name!r} is not axis-aligned in the zero pose")
+        h = np.abs(R) @ model.geom_size[gid]
+        k = 2.0 / math.sqrt(math.pi)
+        rx, ry, hz = k * h[0], k * h[1], h[2]
+        rounded = _ROUNDED_ENDS.get(name, (False, False))
+        out[name] = RoundedSegment(name, data.geom_xpos[gid].copy(), rx, ry, hz,
+                                   min(rx, ry, hz), rounded)
+    return out
+
+
+def _profile(s: RoundedSegment, patch_length: float, cap_bands: int
+             ) -> list[tuple[float, float]]:
+    """(z, r) rings from bottom to top: caps in ``cap_bands`` latitude bands each, the
+    cylinder in bands no longer than ``patch_length``."""
+    top, bottom = s.rounded
+    z0 = -(s.hz - s.cap) if bottom else -s.hz
+    z1 = (s.hz - s.cap) if top else s.hz
+    rings = []
+    if bottom:
+        for k in range(cap_bands):
+            t = 0.5 * math.pi * k / cap_bands
+            rings.append((-(s.hz - s.cap) - s.cap * math.cos(t), math.sin(t)))
+    n = max(1, math.ceil((z1 - z0) / patch_length - 1e-9)) if z1 - z0 > 1e-9 else 0
+    rings += [(z0 + (z1 - z0) * i / max(n, 1), 1.0) for i in range(n + 1)]
+    if top:
+        for k in range(cap_bands - 1, -1, -1):
+            t = 0.5 * math.pi * k / cap_bands
+            rings.append(((s.hz - s.cap) + s.cap * math.cos(t), math.sin(t)))
+    return rings
+
+
+def tessellate(s: RoundedSegment, patch_length: float = 0.12, around: int = 10,
+               cap_bands: int = 2) -> list[tuple[np.ndarray, bool]]:
+    """The surface of ``s`` as (vertices (4, 3) world, on a cap) patches with outward
+    normals by the right-hand rule; a pole's triangles repeat their last vertex."""
+    rings = _profile(s, patch_length, cap_bands)
+    out = []
+    for i in range(len(rings) - 1):
+        (za, ra), (zb, rb) = rings[i], rings[i + 1]
+        cap = (s.rounded[1] and i < cap_bands) or (s.rounded[0]
+                                                   and i >= len(rings) - 1 - cap_bands)
+        for j in range(around):
+            p0, p1 = 2 * math.pi * j / around, 2 * math.pi * (j + 1) / around
+            quad = [s.point(za, ra, p0)]
+            if ra > 1e-12:  # a ring of radius 0 is a pole: the patch is a triangle
+                quad.append(s.point(za, ra, p1))
+            quad.append(s.point(zb, rb, p1))
+            if rb > 1e-12:
+                quad.append(s.point(zb, rb, p0))
+            quad = np.asarray(quad)
+            # outward: along the solid's gradient (x / rx^2, y / ry^2, zc / cap^2)
+            nrm = np.cross(quad[1] - quad[0], quad[2] - quad[0])
+            d = quad.mean(axis=0) - s.center
+            zc = math.copysign(max(0.0, abs(d[2]) - (s.hz - s.cap)), d[2]) if cap else 0.0
+            grad = np.array([d[0] / s.rx ** 2, d[1] / s.ry ** 2, zc / s.cap ** 2])
+            if nrm @ grad < 0:
+                quad = quad[::-1]
+            if len(quad) == 3:
+                quad = np.vstack([quad, quad[-1:]])
+            out.append((quad, cap))
+    return out
+
+
+def rounded_polygons(model: mujoco.MjModel, patch_length: float = 0.12, around: int = 10,
+                     cap_bands: int = 2) -> PolygonSet:
+    """The swimmer's rounded surface as a :class:`PolygonSet`: every segment but the hands
+    and feet an elliptic cylinder with ellipsoidal caps (``around`` patches round it,
+    ``cap_bands`` latitude bands per cap; table 1 the caps, 2 the tubes), the hands and
+    feet their box faces (table 0, the plate). A cap's patch inside a joint neighbour (its
+    parent or child) in the zero pose is never wetted and left out. No forward vector: a
+    rounded patch's force depends on the angle of the flow to it alone."""
+    segs = rounded_segments(model)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    bid = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in SEGMENTS}
+    neighbours: dict[str, list[str]] = {n: [] for n in SEGMENTS}
+    for n in SEGMENTS:
+        pname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.body_parentid[bid[n]])
+        if pname in neighbours:
+            neighbours[n].append(pname)
+            neighbours[pname].append(n)
+    flat = swimmer_polygons(model, patch_length, hide_joint_faces=True)
+    sets = [flat.subset(np.array([lbl in FLAT_SEGMENTS for lbl in flat.labels]))]
+    for name, s in segs.items():
+        xpos = data.xpos[bid[name]]
+        xR = data.xmat[bid[name]].reshape(3, 3)
+        kept = [(quad, cap) for quad, cap in tessellate(s, patch_length, around, cap_bands)
+                if not (cap and any(segs[o].inside(quad.mean(axis=0))
+                                    for o in neighbours[name] if o in segs))]
+        polys = np.asarray([(quad - xpos) @ xR for quad, _ in kept])
+        tables = np.array([TABLE_NOSE if cap else TABLE_TUBE for _, cap in kept])
+        sets.append(PolygonSet.from_polygons(bid[name], polys, None, tables,
+                                             labels=[name] * len(polys)))
+    return PolygonSet.concat(sets)
+
+
 # -- the swimmer -----------------------------------------------------------------------
 @dataclass
 class JointInfo:
@@ -311,17 +521,22 @@ class Swimmer:
                  ) -> None:
         self.params = params or SwimmerParams()
         p = self.params
-        self.model = load_swimmer_model(p.lung_volume_l, p.world, p.timestep)
+        self.model = load_swimmer_model(p.lung_volume_l, p.world, p.timestep,
+                                        skin=p.body_shape == "rounded")
         self.data = mujoco.MjData(self.model)
         self.joints = joint_info(self.model)
         self.body = {n: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, n)
                      for n in SEGMENTS}
-        self.polygons = swimmer_polygons(self.model, p.patch_length, p.hide_joint_faces)
+        if p.body_shape == "rounded":
+            self.polygons = rounded_polygons(self.model, p.patch_length)
+        else:
+            self.polygons = swimmer_polygons(self.model, p.patch_length, p.hide_joint_faces)
         self.flow = flow or FlowField()
         self._current = self.flow.params[1:4].copy()  # the user's uniform current
-        table = hoerner_plate(0.2, cd_crossflow=p.cd_normal)
+        tables = [hoerner_plate(0.2, cd_crossflow=p.cd_normal), rounded_surface(p.cp_nose),
+                  rounded_surface(p.cp_tube)]
         self.hydro = SurfaceForces(
-            self.model, self.polygons, [table],
+            self.model, self.polygons, tables,
             FluidParams(density=p.water_density, friction=p.friction, front_facing_only=True,
                         surface_z=p.water_level),
             self.flow, name="swimmer hydrodynamics",

@@ -114,6 +114,10 @@ class SwimResult:
     target_xyz: np.ndarray | None = field(default=None, repr=False)
     aim_heading: np.ndarray | None = field(default=None, repr=False)
     body_yaw: np.ndarray | None = field(default=None, repr=False)
+    #: at each sample: the roll of the thorax (shoulders) and of the pelvis (hips) about
+    #: the body's long axis (the left side's rise above the horizontal) and the trunk's
+    #: incline (the pelvis-to-neck line above the horizontal) [rad]
+    carriage: np.ndarray | None = field(default=None, repr=False)
 
     def _steady(self) -> np.ndarray:
         t0 = SETTLE_CYCLES / self.rate_hz if self.seconds > 3 * SETTLE_CYCLES / self.rate_hz else 0
@@ -235,6 +239,17 @@ class SwimResult:
         """Forward distance per cycle [m]."""
         return self.speed / self.rate_hz
 
+    def _carriage_summary(self, sel: np.ndarray) -> dict:
+        """Roll to each side (half the range of the settled swim) of the shoulders and
+        hips, and the trunk's mean incline [deg] (Psycharakis & Sanders 2008; Zamparo et
+        al. 2009 measure these on swimmers)."""
+        if self.carriage is None or not len(self.carriage) or not sel.any():
+            return {}
+        c = np.degrees(self.carriage[sel])
+        return {"roll_shoulders_deg": float(0.5 * np.ptp(c[:, 0])),
+                "roll_hips_deg": float(0.5 * np.ptp(c[:, 1])),
+                "trunk_incline_deg": float(c[:, 2].mean())}
+
     def summary(self) -> dict:
         head_z = self.head[:, 2] - self.water_level
         com_z = self.com[:, 2] - self.water_level
@@ -269,10 +284,16 @@ class SwimResult:
             "hand_rules": self.hands,
             **self.tracking(),
             **self._target_summary(),
+            **self._carriage_summary(sel),
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
             "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
         }
+
+
+def _roll(d: mujoco.MjData, body: int) -> float:
+    """The angle of ``body``'s left axis (local y) above the horizontal [rad]."""
+    return math.asin(max(-1.0, min(1.0, float(d.xmat[body][7]))))
 
 
 def swim(
@@ -294,6 +315,7 @@ def swim(
     rules: tuple[str, ...] | None = None,
     cycle_table: object | None = None,
     hand_params: object | None = None,
+    speed: float | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
@@ -305,7 +327,9 @@ def swim(
     also the continuous layer: the hand rules ``rules`` (default both, see
     :mod:`flapsim.swim.continuous`) and the stroke's feedback rules (its
     ``[perturb.*]`` sections: treading water's balance) at 50 Hz. ``feedback=False``
-    (older API) means "basic". ``cycle_table``: a :class:`flapsim.swim.per_cycle.CycleTable`
+    (older API) means "basic". ``speed`` [m/s]: the per-cycle layer sets each cycle's stroke
+    rate to hold it (:class:`flapsim.swim.per_cycle.CycleLayer`). ``cycle_table``: a
+    :class:`flapsim.swim.per_cycle.CycleTable`
     instead of the stroke's own. ``hand_params``: a
     :class:`flapsim.swim.continuous.HandRuleParams` instead of the defaults.
     ``target``: a heading, a point (with a depth: 3D), waypoints, a timed trajectory or
@@ -330,15 +354,19 @@ def swim(
     if target is not None and layers != "basic" and not steering:
         raise InputError(f"stroke {st.name!r} cannot steer: it has no [cycle.yaw_*] sequences "
                          "(crawl, breaststroke and treading have)")
+    if speed is not None and layers == "basic":
+        raise InputError("a speed asked is held by the per-cycle layer: use layers 'cycle' or "
+                         "'all', not 'basic'")
     fb = FeedbackLayer(layer, target=target) if st.perturbations else None
     cyc = None
     if st.cycle:
         try:
             table = cycle_table if cycle_table is not None else \
-                load_table(st, layers="all" if layers == "all" else "cycle")
-            cyc = CycleLayer(layer, table, target=target, feedback=fb)
+                load_table(st, layers="all" if layers == "all" else "cycle",
+                           body_shape=sw.params.body_shape)
+            cyc = CycleLayer(layer, table, target=target, feedback=fb, speed=speed)
         except InputError:
-            if target is not None and layers != "basic":
+            if (target is not None or speed is not None) and layers != "basic":
                 raise
             log.warning("stroke %s has no per-cycle calibration table: the per-cycle layer is "
                         "off", st.name)
@@ -358,6 +386,8 @@ def swim(
     every = max(1, int(round(1.0 / (SAMPLE_HZ * dt))))
     control_every = max(1, int(round(0.02 / dt)))  # swimmer-induced flow at 50 Hz
     times, com, head, power = [], [], [], []
+    carriage: list[tuple[float, float, float]] = []  # roll of thorax, pelvis; incline [rad]
+    thorax = sw.body["thorax"]
     damp = m.dof_damping[6:].copy()
     head_gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head")
     pelvis = sw.body["pelvis"]
@@ -387,6 +417,8 @@ def swim(
                     power.append(float((d.qfrc_actuator[6:] - damp * qd) @ qd))
                     line = d.xpos[head_body] - d.xpos[pelvis]
                     yaw.append(math.atan2(line[1], line[0]))
+                    carriage.append((_roll(d, thorax), _roll(d, pelvis),
+                                     math.atan2(line[2], math.hypot(line[0], line[1]))))
                     if target is not None:
                         aim.append(target.heading(com[-1][:2].copy(), np.zeros(2), float(d.time)))
                         pos = getattr(target, "position", None)
@@ -415,6 +447,7 @@ def swim(
                             head.append(d.geom_xpos[head_gid].copy())
                             power.append(power[-1])
                             yaw.append(yaw[-1])
+                            carriage.append(carriage[-1])
                             if target is not None:
                                 aim.append(aim[-1])
                                 txyz.append(txyz[-1])
@@ -439,6 +472,6 @@ def swim(
                       hands=hands.summary() if (hands is not None and stack.mode == "all") else None,
                       target_xyz=np.asarray(txyz) if target is not None else None,
                       aim_heading=np.asarray(aim) if target is not None else None,
-                      body_yaw=np.asarray(yaw))
+                      body_yaw=np.asarray(yaw), carriage=np.asarray(carriage))
 
 

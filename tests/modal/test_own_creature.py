@@ -78,6 +78,9 @@ def test_legs_are_found_from_the_tree_and_straight_legs_detected():
     assert [g.foot_name for g in legs.legs] == ["la_dn", "lb_dn", "lc_dn", "ld_dn"]
     assert [g.knee for g in legs.legs] == ["la_m", "lb_m", "lc_m", "ld_m"]
     assert legs.legs[0].hip == ("la_s", "la_o")
+    # Flexion sign: +y hinges swing the lower leg's end backwards (y x -z = -x) for a
+    # hind leg (+1); a front leg flexes the other way, as a dog's elbow (-1).
+    assert [g.knee_sign for g in legs.legs] == [1.0, 1.0, -1.0, -1.0]
     # Straight vertical legs: a knee moves the point below it only fore-aft (0 exactly).
     assert leg_straightness(m, m.qpos_spring.copy(), legs) < 1e-12
 
@@ -205,3 +208,51 @@ def test_creature_on_a_users_snake_moves_it_and_names_its_file(tmp_path):
     # (settling only): at least 20 times less.
     assert r["distance_horizontal_body_lengths"] > 0.1
     assert s["distance_horizontal_m"] < r["distance_horizontal_m"] / 20
+
+
+def test_label_file_overrides_the_tree(tmp_path):
+    m = mujoco.MjModel.from_xml_path(BIPED)
+    f = tmp_path / "labels.toml"
+    # Swap the sides on purpose and declare the right knee reversed: the file wins.
+    f.write_text('[feet]\nleft = "q_sole"\nright = "p_sole"\n[knees]\nright = "-p_mid"\n')
+    from flapsim.modal.legs import read_label_file
+    legs = find_legs(m, m.qpos_spring.copy(), read_label_file(f))
+    assert [g.foot_name for g in legs.legs] == ["q_sole", "p_sole"]
+    assert legs.legs[1].knee == "p_mid" and legs.legs[1].knee_sign == -1.0
+    assert legs.source["feet"] == "label file" and legs.source["knee left"] == "tree"
+    f.write_text('[feet]\nleft = "no_such_part"\nright = "p_sole"\n')
+    with pytest.raises(InputError, match="no_such_part"):
+        find_legs(m, m.qpos_spring.copy(), read_label_file(f))
+
+
+def test_stiffness_edits_change_the_modes_as_the_square_root(tmp_path):
+    # Every joint x4 (no tuning): K -> 4K with M unchanged, so every natural frequency
+    # doubles exactly (omega = sqrt(k/m)); the mode shapes and hence the gait stay.
+    base, _ = _animate(tmp_path, BIPED, "walk", "--no-tune")
+    m = mujoco.MjModel.from_xml_path(BIPED)
+    edits = []
+    for j in range(m.njnt):
+        if m.jnt_stiffness[j] > 0:
+            edits += ["--stiffness", f"{m.joint(j).name}=4"]
+    stiff, _ = _animate(tmp_path, BIPED, "walk", "--no-tune", *edits)
+    for a, b in zip(base["chosen"], stiff["chosen"], strict=True):
+        assert a["mode"] == b["mode"]
+        assert b["freq_hz_natural"] == pytest.approx(2 * a["freq_hz_natural"], rel=1e-9)
+
+
+def test_posture_slider_offsets_along_the_knee_bend_mode(tmp_path):
+    gf = tmp_path / "walk.toml"
+    _, plain = _animate(tmp_path, BIPED, "walk", "--no-tune", "--save-gait", str(gf))
+    gf.write_text(gf.read_text().replace("posture = 0.0", "posture = 0.1"))
+    npz = tmp_path / "p.npz"
+    assert main(["animate", BIPED, "--gait-file", str(gf), "--seconds", "1", "--fps", "60",
+                 "--npz", str(npz)]) == 0
+    m = mujoco.MjModel.from_xml_path(BIPED)
+    knees = [m.jnt_qposadr[m.joint(n).id] for n in ("p_mid", "q_mid")]
+    shift = (np.load(npz)["qpos"] - plain["qpos"])[:, knees].mean(axis=0)
+    # Synchronous knee bend: both knees move the same way, by 0.1 x the shape's knee
+    # entry (largest rotation 1 rad, so at most 0.1 rad; the soft limits are far away),
+    # and posture > 0 crouches: these hinges turn about +y, so a positive angle swings
+    # the shank's lower end backwards (y x -z = -x), i.e. flexes the knee.
+    assert shift[0] == pytest.approx(shift[1], rel=1e-6)
+    assert 0.005 < shift[0] <= 0.1 + 1e-9

@@ -32,7 +32,7 @@ def test_lungs_add_volume_only():
 
 
 def test_polygons_cover_the_boxes():
-    sw = Swimmer(SwimmerParams(lung_volume_l=0.0))
+    sw = Swimmer(SwimmerParams(lung_volume_l=0.0, body_shape="box"))
     m = sw.model
     full = swimmer_polygons(m, patch_length=0.12, hide_joint_faces=False)
     boxes = sum(8 * (h[0] * h[1] + h[1] * h[2] + h[0] * h[2])

@@ -8,6 +8,7 @@ import argparse
 import dataclasses
 import math
 import os
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -114,13 +115,13 @@ def _list() -> dict:
                                "description": g.description} for g in GAITS.values()}}
 
 
-def _own_or_bundled(args: argparse.Namespace):
+def _own_or_bundled(args: argparse.Namespace, gfile: GaitFile | None):
     """The model, its label and whether it goes through the own-creature setup."""
     if args.model_file and args.model and args.model_file != args.model:
         raise InputError("give the model once: MODEL.xml or --model, not both")
     spec = args.model_file or args.model
     if spec is None:
-        name = args.gait or "walk"
+        name = args.gait or (gfile.name if gfile and gfile.name in GAITS else "walk")
         spec = gait(name).model if name != "list" else "human"
     model, label = resolve_model(spec)
     own = spec not in MODELS and (args.labels is not None or not has_convention_labels(model))
@@ -135,8 +136,8 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--seconds {args.seconds:g} at --fps {args.fps:g} is {frames} frames; at "
                          f"most {MAX_FRAMES} (the trajectory is held in memory): shorten it or "
                          "lower --fps")
-    model, label, spec, own_flow = _own_or_bundled(args)
     gfile = GaitFile.read(args.gait_file) if args.gait_file else None
+    model, label, spec, own_flow = _own_or_bundled(args, gfile)
     edits = dict(gfile.stiffness) if gfile else {}
     for k, v in parse_stiffness_edits(args.stiffness).items():
         edits[k] = edits.get(k, 1.0) * v
@@ -167,6 +168,8 @@ def run(args: argparse.Namespace) -> dict:
             print("stiffness edits: " + ", ".join(f"{k} x{v:g}" for k, v in edits.items()))
     else:
         apply_stiffness_edits(model, edits)
+        if gfile is not None:
+            scale = gfile.stiffness_scale
 
     if own is not None:
         default = "trot" if own.legs.quadruped else "walk"
@@ -176,7 +179,8 @@ def run(args: argparse.Namespace) -> dict:
     if own is not None:
         kind = "quadruped" if own.legs.quadruped else "biped"
         if g.kind != kind:
-            names = [n for n, x in GAITS.items() if x.kind == kind]
+            names = [n for n, x in GAITS.items()
+                     if x.kind == kind and not x.constraints and x.model != "human_cart"]
             raise InputError(f"gait {g.name!r} is for a {g.kind}, and {label} is a {kind} "
                              f"({len(own.legs.legs)} feet): use {', '.join(names)}")
     elif spec in MODELS and spec != g.model and not (spec == "human_cart" and g.model == "human"):
@@ -251,6 +255,8 @@ def run(args: argparse.Namespace) -> dict:
         "constraint_residual": anim.constraint_residual,
         "checks": checks,
     }
+    if spec not in MODELS:
+        out["model_file"] = str(Path(spec).resolve())
     if own is not None:
         out["own_creature"] = own.report(model)
     out["modes_used"] = [{k: c[k] for k in ("mode", "categories", "mode_sign", "amplitude",
@@ -276,7 +282,9 @@ def run(args: argparse.Namespace) -> dict:
               f"{100 * tr.max_slip_m:.2f} cm (legs corrected by up to "
               f"{math.degrees(tr.max_leg_correction_rad):.1f} deg)")
     if args.save_gait:
-        gf = gait_file_of(plan, args.amplitude_scale, knee_flex_deg=own.knee_flex_deg if own else 0.0,
+        # a played gait file's amplitudes already carry --amplitude-scale
+        gf = gait_file_of(plan, 1.0 if gfile else args.amplitude_scale,
+                          knee_flex_deg=own.knee_flex_deg if own else 0.0,
                           stiffness_scale=scale, stiffness=edits)
         gf.write(args.save_gait)
         print(f"gait file -> {args.save_gait}")

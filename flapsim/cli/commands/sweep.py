@@ -12,6 +12,7 @@ from flapsim.cli.commands.swim import add_target_arguments, target_from_args
 from flapsim.core.errors import InputError
 from flapsim.core.io import atomic_path
 from flapsim.core.validate import RANGES, add_input_arg, add_output_arg, integer, quantity
+from flapsim.swim.goals import Waypoints
 from flapsim.swim.plots import sweep_plot
 from flapsim.swim.sweep import PARAMETERS, sweep, table
 
@@ -55,6 +56,9 @@ def run(args: argparse.Namespace) -> dict:
     if not values:
         raise InputError("--values: give at least one value")
     target = target_from_args(args)
+    if isinstance(target, Waypoints):
+        raise InputError("flapsim sweep swims on the surface: a --target depth below it (a "
+                         "surface dive) is flapsim swim's; give --target X,Y")
 
     t0 = time.perf_counter()
     with tqdm(total=len(values), unit="run", desc=f"{args.stroke} x {args.vary}") as bar:

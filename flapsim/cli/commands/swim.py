@@ -13,13 +13,23 @@ from flapsim.core.errors import InputError
 from flapsim.core.io import atomic_video, save_npz
 from flapsim.core.validate import add_input_arg, add_output_arg, quantity, vector
 from flapsim.fluid.flow import FlowField, Source, Vortex
-from flapsim.swim.goals import Heading, Path, Point, figure_eight, load_path, load_trajectory
+from flapsim.swim.dive import SurfaceDive
+from flapsim.swim.goals import (
+    Heading,
+    Path,
+    Point,
+    Waypoints,
+    figure_eight,
+    load_path,
+    load_trajectory,
+)
 from flapsim.swim.interactive import SwimViewer, check_display
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.per_cycle import calibrate, load_table
 from flapsim.swim.plots import track_plot
 from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import load_stroke
+from flapsim.swim.tow import NARITA_K, tow
 
 HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate and floating height"
 SEED_HELP = "accepted for uniformity; swimming is deterministic, --seed changes nothing"
@@ -42,8 +52,10 @@ def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
 def add_target_arguments(p: argparse.ArgumentParser) -> None:
     """What to steer for (shared with ``flapsim sweep``)."""
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--target", metavar="X,Y", type=vector("position", 2),
-                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke")
+    g.add_argument("--target", metavar="X,Y[,Z]",
+                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke. "
+                        "A Z below the surface (< 0) is reached by a surface dive (breathe "
+                        "out, pike, swim on under water, breathe in there and come up)")
     add_input_arg(g, "--path", metavar="FILE",
                   help="follow a path: a text file of 'x, y' points [m], one per line")
     g.add_argument("--figure8", type=quantity("radius"), metavar="R",
@@ -69,12 +81,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="simulated time [s] (default 20)")
     p.add_argument("--rate", type=quantity("rate"), default=None,
                    help="stroke rate [cycles/s] (default: the stroke file's)")
+    p.add_argument("--speed", type=float, default=None, metavar="M_S",
+                   help="hold this speed [m/s, 0.5..1.6] by the stroke rate, set once per cycle "
+                        "by the per-cycle layer (crawl, breaststroke)")
     p.add_argument("--density", type=quantity("density"), default=None,
                    help="water density [kg/m^3] (default 1025, the paper's 91 kg buoyancy)")
     p.add_argument("--lungs", type=quantity("lungs"), default=None,
                    help="extra lung volume [L] (default 3, the paper's floater)")
     p.add_argument("--friction", type=quantity("friction"), default=None,
                    help="skin-friction coefficient eta [N s/m^3] (default 2)")
+    p.add_argument("--body", choices=("box", "rounded"), default="box",
+                   help="hydrodynamic surface: the paper's 16 boxes (default; the strokes are "
+                        "tuned on them) or rounded segments (a towed person's drag, drawn "
+                        "rounded too)")
     p.add_argument("--buoyancy", choices=("exact", "linear"), default="exact",
                    help="submerged fraction: exact spherical cap or the paper's linear rule")
     p.add_argument("--r-min", type=quantity("flow_ratio"), default=0.0,
@@ -105,6 +124,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="instead of swimming: make the stroke's per-cycle weight tables by "
                         "pre-simulation in still water (parallel, resumable; written next to "
                         "the stroke file, or to --table)")
+    p.add_argument("--tow", metavar="V1,V2,...", default=None,
+                   help="instead of swimming: tow the body in a streamlined glide at these "
+                        "speeds [m/s], at the surface and 0.5 m under it, and report the drag "
+                        "and the fitted D = K v^2 (tow_drag_coefficient; people 23.5, Narita "
+                        "et al. 2017)")
     p.add_argument("--table", metavar="FILE.json", default=None,
                    help="per-cycle calibration table to use (or, with --calibrate, to write); "
                         "default: <stroke>.cycle.json next to the stroke file")
@@ -133,12 +157,34 @@ def _flow(args: argparse.Namespace) -> FlowField:
     return FlowField(prims)
 
 
+#: how close the head or the pelvis must come to a point below the surface [m] (the
+#: swim-dive scenario's radius)
+DIVE_RADIUS_M = 0.75
+
+
+def _target_xyz(text) -> tuple[float, ...]:
+    """--target X,Y or X,Y,Z: finite numbers, Z -50..0.5 m; a one-line error otherwise."""
+    parts = text if isinstance(text, tuple) else tuple(str(text).split(","))
+    try:
+        v = tuple(float(x) for x in parts)
+    except ValueError:
+        raise InputError(f"--target must be X,Y or X,Y,Z in metres, got {text!r}") from None
+    if len(v) not in (2, 3) or not np.all(np.isfinite(v)):
+        raise InputError(f"--target must be two or three finite numbers X,Y[,Z], got {text!r}")
+    if len(v) == 3 and not -50.0 <= v[2] <= 0.5:
+        raise InputError(f"--target depth Z must be -50..0.5 m (0: the surface), got {v[2]:g}")
+    return v
+
+
 def target_from_args(args: argparse.Namespace):
     """The target the target arguments name, or None."""
 
     if args.target is not None:
-        x, y = _vec(args.target, "--target", 2)
-        return Point(x, y)
+        v = _target_xyz(args.target)
+        if len(v) == 3 and v[2] < 0.0:
+            # the point below, then the surface above it: come up for air there
+            return Waypoints(np.array([v, (v[0], v[1], 0.0)]), radius=DIVE_RADIUS_M)
+        return Point(v[0], v[1])
     if args.moving_target is not None:
         x, y, vx, vy = _vec(args.moving_target, "--moving-target", 4)
         return Point(x, y, vx=vx, vy=vy)
@@ -147,7 +193,13 @@ def target_from_args(args: argparse.Namespace):
     if args.figure8 is not None:
         return figure_eight(args.figure8, lookahead=args.lookahead)
     if getattr(args, "trajectory", None) is not None:
-        return load_trajectory(args.trajectory)
+        traj = load_trajectory(args.trajectory)
+        if traj.is_3d and float(traj.table[:, 3].min()) < 0.0:
+            raise InputError(f"{args.trajectory}: a depth below the surface (z < 0) cannot be "
+                             "followed along a trajectory (the floating swimmer only pitches "
+                             "towards it); give z >= 0, or dive to a fixed point with "
+                             "--target X,Y,Z")
+        return traj
     if args.heading is not None:
         if not np.isfinite(args.heading):
             raise InputError("--heading must be a finite angle in degrees")
@@ -187,26 +239,75 @@ def calibrate_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
     return {"stroke": args.stroke, "table": str(out), "tables": rows}
 
 
+def tow_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
+    """``flapsim swim --tow V1,V2,...``: passive drag in a streamlined glide
+    (:func:`flapsim.swim.tow.tow`)."""
+    try:
+        speeds = [float(x) for x in str(args.tow).split(",")]
+    except ValueError:
+        raise InputError(f"--tow must be comma-separated speeds in m/s, e.g. 1.0,1.5,2.0; got "
+                         f"{args.tow!r}") from None
+    r = tow(speeds, params)
+    s = r.summary()
+    s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    print(f"towed in a streamlined glide ({params.body_shape} body); people: {NARITA_K} v^2 N "
+          "(Narita et al. 2017)")
+    print(f"{'v [m/s]':>8} {'surface [N]':>12} {f'{r.depth_m:g} m under [N]':>15} {'people [N]':>11}")
+    for v, a, b in zip(r.speeds, r.surface_n, r.submerged_n, strict=True):
+        print(f"{v:8.2f} {a:12.1f} {b:15.1f} {NARITA_K * v * v:11.1f}")
+    print(f"tow_drag_coefficient {r.k_surface:.1f} N s^2/m^2 at the surface "
+          f"({r.k_surface / NARITA_K:.2f}x people), {r.k_submerged:.1f} under it; the fluid model "
+          "has no wave drag, so the surface is not the higher one as it is for people")
+    return s
+
+
+def _t(v: float | None) -> str:
+    return "never" if v is None else f"at {v:.1f} s"
+
+
 def run(args: argparse.Namespace) -> dict:
     layers = _layers(args)
-    kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max}
+    kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max,
+          "body_shape": getattr(args, "body", "box")}
     for name, key in (("density", "water_density"), ("lungs", "lung_volume_l"),
                       ("friction", "friction"), ("timestep", "timestep")):
         if getattr(args, name) is not None:
             kw[key] = getattr(args, name)
     params = SwimmerParams(**kw)
+    if args.calibrate and args.tow is not None:
+        raise InputError("--calibrate and --tow are two different jobs: give one")
     if args.calibrate:
         return calibrate_command(args, params)
+    if args.tow is not None:
+        return tow_command(args, params)
     cycle_table = None
     if args.table is not None:
         cycle_table = load_table(load_stroke(args.stroke), args.table,
-                                 layers="all" if layers == "all" else "cycle")
+                                 layers="all" if layers == "all" else "cycle",
+                                 body_shape=params.body_shape)
     video = args.video
     target = target_from_args(args)
     flow = _flow(args)
     current = _vec(args.current, "--current", 3)
     viewer = None
     swimmer = None
+    dive = None
+    if isinstance(target, Waypoints):
+        stroke = load_stroke(args.stroke)
+        if stroke.posture != "prone" or not any(k.startswith("yaw") for k in stroke.cycle):
+            raise InputError(f"a target below the surface is reached by a surface dive, which "
+                             f"the prone strokes swim (crawl, breaststroke), not "
+                             f"{args.stroke!r}")
+        if stroke.name == "crawl":
+            raise InputError("the crawl does not reach a point below the surface (after the "
+                             "surface dive its pitch-down sequence, 2.5-4.5 deg per cycle, "
+                             "cannot take it down): dive with --stroke breaststroke")
+        if args.viewer:
+            raise InputError("the viewer's target stays on the surface: give --target X,Y")
+        if layers == "basic":
+            raise InputError("a dive needs the per-cycle layer (it pitches towards the point "
+                             "below): --layers cycle or all")
+        dive = SurfaceDive(target, lungs_l=params.lung_volume_l)
     if args.viewer:
         check_display()
         if target is not None and not isinstance(target, Point):
@@ -228,13 +329,21 @@ def run(args: argparse.Namespace) -> dict:
             result = swim(args.stroke, args.seconds, params, rate_hz=args.rate, flow=flow,
                           current=current, video_fps=args.fps if video else 0.0,
                           progress=viewer is None, layers=layers, target=target,
-                          swimmer=swimmer, control_hook=viewer, on_frame=on_frame,
-                          cycle_table=cycle_table)
+                          swimmer=swimmer, control_hook=viewer if viewer is not None else dive,
+                          on_frame=on_frame,
+                          cycle_table=cycle_table, speed=args.speed)
         finally:
             if viewer is not None:
                 viewer.close()
     s = result.summary()
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
+    if dive is not None:
+        head = result.head[:, 2] - result.water_level
+        reached = dive.events["reached"]
+        up = np.flatnonzero((result.times > reached) & (head > 0.0)) if reached else []
+        s["dive"] = {"events_s": dict(dive.events), "closest_to_point_m": dive.closest_m,
+                     "deepest_head_m": float(head.min()),
+                     "head_resurfaced_s": float(result.times[up[0]]) if len(up) else None}
     if args.plot:
         track_plot(result, args.plot)
         s["plot"] = str(args.plot)
@@ -268,6 +377,9 @@ def run(args: argparse.Namespace) -> dict:
     print(f"  centre of mass   {s['com_height_mean_m']:+.3f} m mean relative to the surface")
     print(f"  head drift       {s['head_horizontal_drift_max_m']:.3f} m max horizontally")
     print(f"  muscle power     {s['muscle_power_mean_w']:.0f} W mean (joint torques x speeds)")
+    if "roll_shoulders_deg" in s:
+        print(f"  carriage         roll +-{s['roll_shoulders_deg']:.0f} deg shoulders, "
+              f"+-{s['roll_hips_deg']:.0f} deg hips; trunk incline {s['trunk_incline_deg']:.0f} deg")
     print(f"  layers           {' + '.join(s['layers'])}")
     if "target" in s:
         t = s["target"]
@@ -295,6 +407,11 @@ def run(args: argparse.Namespace) -> dict:
     for name, w in (s.get("feedback_weights") or {}).items():
         print(f"    {name:14s} weight mean {w['mean']:+.2f}, |w| {w['mean_abs']:.2f}, "
               f"saturated {100 * w['saturated_fraction']:.0f}% of the time")
+    if dive is not None:
+        dv = s["dive"]
+        print(f"  dive             started {_t(dv['events_s']['dive'])}, point reached "
+              f"{_t(dv['events_s']['reached'])} (closest {dv['closest_to_point_m']:.2f} m, head "
+              f"down to {dv['deepest_head_m']:+.2f} m), head up again {_t(dv['head_resurfaced_s'])}")
     if video:
         print(f"  video            {video}")
     if args.out:
