@@ -34,9 +34,9 @@ import mujoco
 
 from flapsim import __version__
 from flapsim.core import environment, interrupts
-from flapsim.core.errors import FlapsimError
+from flapsim.core.errors import FlapsimError, OutputError
 from flapsim.core.io import _jsonable, write_json
-from flapsim.core.validate import add_output_arg, check_outputs, guard_gl
+from flapsim.core.validate import add_output_arg, check_outputs, declare_options, guard_gl
 
 # Order is the order ``flapsim --help`` lists them in.
 COMMANDS: tuple[str, ...] = ("fly", "eval", "view", "train", "swim", "sweep", "modes", "creature",
@@ -94,6 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--seed", type=int, default=0,
                        help=getattr(module, "SEED_HELP", "random seed (default 0)"))
         module.add_arguments(p)
+        declare_options(p)
         p.set_defaults(_module=module)
     return parser
 
@@ -158,13 +159,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"results written to {args.json}")
                 if hasattr(args._module, "finished"):
                     args._module.finished(args)  # e.g. eval's journal of finished runs
+    except OutputError as exc:  # the system refused a write: not the user's input
+        print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except FlapsimError as exc:
         print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        hint = "; run the same command again to resume" if args.command == "train" else ""
-        if hasattr(args._module, "resume_hint"):
-            hint = args._module.resume_hint(args)
+        hint = args._module.resume_hint(args) if hasattr(args._module, "resume_hint") else ""
         print(f"flapsim {args.command}: interrupted{hint}", file=sys.stderr)
         return 130
     except Terminated:

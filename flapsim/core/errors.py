@@ -23,3 +23,9 @@ class SimulationError(FlapsimError):
 
 class ProviderError(FlapsimError):
     """A passive-force provider raised while MuJoCo was stepping."""
+
+
+class OutputError(FlapsimError, OSError):
+    """The system refused to write an output (a full disk, a quota, a failed video encoder):
+    the message names the file; nothing half-written is left (the CLI's exit status 1). An
+    OSError too, as the failure it stands for was."""

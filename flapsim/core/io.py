@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -14,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from flapsim.core import interrupts
-from flapsim.core.errors import InputError
+from flapsim.core.errors import DataFileError, InputError, OutputError
 
 
 def _temporary(target: Path, suffix: str | None) -> Path:
@@ -40,12 +42,25 @@ def write_problem(path: str | os.PathLike, suffix: str | None = None) -> str | N
     return None
 
 
+#: errno values that say the file system refused to store what was written
+_NO_ROOM = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS}
+
+
+def output_failed(target: Path, exc: OSError) -> OutputError:
+    """The one-line error for an output the system refused to store."""
+    return OutputError(f"cannot write {target}: {exc.strerror or exc}; nothing was written "
+                       "there (free space, or choose another place)")
+
+
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, suffix: str | None = None,
+                exclusive: bool = False) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
 
     ``suffix`` keeps the extension libraries look at (``np.savez`` appends ``.npz``
-    when it is missing, video writers pick a codec from it).
+    when it is missing, video writers pick a codec from it). ``exclusive``: never replace
+    a file at ``path`` (FileExistsError; a hard link, atomic like the rename). A write the
+    file system refuses (a full disk, a quota) is an :class:`OutputError` naming ``path``.
     """
     target = Path(path)
     parent = target.parent if str(target.parent) else Path(".")
@@ -64,11 +79,52 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp_path, 0o666 & ~umask)
-        yield tmp_path
-        os.replace(tmp_path, target)
+        try:
+            yield tmp_path
+            if exclusive:
+                os.link(tmp_path, target)
+            else:
+                os.replace(tmp_path, target)
+        except OSError as exc:
+            if exc.errno in _NO_ROOM:
+                raise output_failed(target, exc) from None
+            raise
     finally:
         if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
+
+
+#: Containers whose structure :func:`check_mp4` reads.
+MP4_SUFFIXES = (".mp4", ".m4v", ".mov")
+
+
+def check_mp4(path: str | os.PathLike) -> str | None:
+    """Why the MP4/QuickTime file at ``path`` is unplayable, or None: its top-level boxes must
+    tile the file and hold a ``moov`` (the index a player needs; ffmpeg writes it last, so an
+    encoder stopped by a full disk leaves a file without it)."""
+    size = os.path.getsize(path)
+    seen = set()
+    pos = 0
+    with open(path, "rb") as fh:
+        while pos < size:
+            fh.seek(pos)
+            head = fh.read(16)
+            if len(head) < 8:
+                return f"a box header is cut short at byte {pos}"
+            length, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            if length == 1:
+                if len(head) < 16:
+                    return f"a box header is cut short at byte {pos}"
+                length = int.from_bytes(head[8:16], "big")
+            elif length == 0:
+                length = size - pos
+            if length < 8 or pos + length > size:
+                return f"the {kind.decode('latin-1')!r} box at byte {pos} is cut short"
+            seen.add(kind)
+            pos += length
+    if b"moov" not in seen:
+        return "it has no index (moov box)"
+    return None
 
 
 @contextlib.contextmanager
@@ -79,15 +135,49 @@ def atomic_video(path: str | os.PathLike, **writer_kwargs: Any) -> Iterator[Any]
     The writer is closed before the temporary is renamed or removed, on an exception too:
     imageio's ``with writer`` skips ``close()`` when its block raised, and ffmpeg, closed only
     when the writer was collected, wrote the temporary video after the cleanup had removed it
-    (4 of 30 SIGTERMs under load left a one-frame ``.x.mp4.*``)."""
+    (4 of 30 SIGTERMs under load left a one-frame ``.x.mp4.*``).
+
+    imageio neither checks ffmpeg's exit status nor the file it left: on a full disk ffmpeg
+    printed "No space left on device", exited 1, and an MP4 without its index was kept as
+    the video. So a frame the encoder refused, its exit status and the container's structure
+    (:func:`check_mp4`) are checked; each failure is an :class:`OutputError` naming ``path``,
+    and the temporary is removed."""
     import imageio.v2 as imageio
 
+    target = Path(path)
     with atomic_path(path) as tmp:
         writer = imageio.get_writer(str(tmp), **writer_kwargs)
+        append = interrupts.checked(writer.append_data)
+        proc: list[Any] = []
+
+        def frame(*args: Any, **kwargs: Any) -> Any:
+            try:
+                out = append(*args, **kwargs)
+            except OSError as exc:  # imageio's own IOError: the pipe to a stopped ffmpeg
+                first = str(exc).strip().splitlines()[0] if str(exc).strip() else "stopped"
+                raise OutputError(f"cannot write {target}: the video encoder stopped ({first}); "
+                                  "is the disk full?") from None
+            if not proc:
+                gen = getattr(writer, "_write_gen", None)  # imageio's ffmpeg frame generator
+                p = getattr(getattr(gen, "gi_frame", None), "f_locals", {}).get("p")
+                if p is not None:
+                    proc.append(p)
+            return out
+
         try:
-            yield interrupts.checked(writer.append_data)
+            yield frame
         finally:
             writer.close()
+        status = proc[0].returncode if proc else None
+        if status:
+            how = f"exit status {status}" if status > 0 else f"signal {-status}"
+            raise OutputError(f"cannot write {target}: the video encoder (ffmpeg) failed ({how}); "
+                              "is the disk full? nothing was written there")
+        if target.suffix.lower() in MP4_SUFFIXES and tmp.stat().st_size:
+            why = check_mp4(tmp)
+            if why is not None:
+                raise OutputError(f"cannot write {target}: the video is unplayable ({why}); is "
+                                  "the disk full? nothing was written there")
 
 
 def _jsonable(obj: Any) -> Any:
@@ -133,3 +223,32 @@ def file_sha256(path: str | Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+#: The largest data file (journal, table, path) read whole: a runaway file is refused in one
+#: line rather than read until memory runs out.
+MAX_READ_BYTES = 1 << 31
+
+
+def read_regular(path: str | os.PathLike, what: str, limit: int = MAX_READ_BYTES) -> bytes:
+    """The bytes of the regular file ``path``, read with a size cap. A device, FIFO or
+    folder is refused (reading ``/dev/zero`` grew without end until the system killed the
+    process), as is a file over ``limit`` bytes: a one-line :class:`DataFileError` naming it."""
+    p = Path(path)
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise DataFileError(f"{what} {p} does not exist") from None
+    except OSError as exc:
+        raise DataFileError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device, pipe or socket)"
+        raise DataFileError(f"{what} {p} is {kind}; name a file")
+    try:
+        with open(p, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise DataFileError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise DataFileError(f"{what} {p} is larger than {limit} bytes; is it the right file?")
+    return data

@@ -41,6 +41,7 @@ import importlib.util
 import math
 import os
 import platform
+import socket
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,6 +97,12 @@ RANGES: dict[str, Range] = {
     "soft_limit_deg": Range(0.0, 90.0, "deg"),
     "polygons": Range(1, 100_000, "polygons"),
     "cycles": Range(0.0, 100.0, "cycles", lo_open=True),
+    # a dove's start: pitched past vertical is no start; the tail bends within +-40 deg
+    # (its joint range, as training checks it)
+    "pitch_deg": Range(-90.0, 90.0, "deg"),
+    "roll_deg": Range(-90.0, 90.0, "deg"),
+    "tail_bias_deg": Range(-40.0, 40.0, "deg"),
+    "speed": Range(0.0, 30.0, "m/s"),
 }
 
 
@@ -255,6 +262,9 @@ def check_inputs(args: argparse.Namespace) -> list[tuple[str, Path]]:
                 raise InputError(f"{spec.flag} {text} does not exist")
             if p.is_dir():
                 raise InputError(f"{spec.flag} {text} is a folder; name a file")
+            if not p.is_file():  # reading /dev/zero grew until the system killed flapsim
+                raise InputError(f"{spec.flag} {text} is not a regular file (a device, pipe or "
+                                 "socket); name a file")
             if not os.access(p, os.R_OK):
                 raise InputError(f"{spec.flag} {text}: not readable (permissions)")
             found.append((spec.flag, p.resolve()))
@@ -269,6 +279,9 @@ def check_output_path(flag: str, value: str, kinds: Sequence[str] | None = None)
         raise InputError(f"{flag} {value}: must end in {' or '.join(kinds)}")
     if p.is_dir() or str(value).endswith(os.sep):
         raise InputError(f"{flag} {value} is a folder; name a file in it")
+    if p.exists() and not p.is_file():  # a device (/dev/full) is no place for a result
+        raise InputError(f"{flag} {value} is not a regular file (a device, pipe or socket); "
+                         "name a file")
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.exists():
         raise InputError(f"{flag} {value}: folder {parent} does not exist (create it first)")
@@ -282,9 +295,27 @@ def check_output_path(flag: str, value: str, kinds: Sequence[str] | None = None)
     return p
 
 
+def declare_options(parser: argparse.ArgumentParser) -> None:
+    """Remember the parser's options (dest -> flag) for :func:`check_not_empty`; called once
+    every option is added."""
+    parser.set_defaults(_options=tuple((a.dest, a.option_strings[-1]) for a in parser._actions
+                                       if a.option_strings and a.dest != "help"))
+
+
+def check_not_empty(args: argparse.Namespace) -> None:
+    """An option given an empty value (``--sizes ""``) is refused, for every command: a
+    command would otherwise take it as "not given" and do something else than asked."""
+    for dest, flag in getattr(args, "_options", ()):
+        value = getattr(args, dest, None)
+        values = value if isinstance(value, list) else [value]
+        if any(isinstance(v, str) and not v.strip() for v in values):
+            raise InputError(f"{flag} is given an empty value; give one, or leave {flag} out")
+
+
 def check_outputs(args: argparse.Namespace) -> None:
     """Check every declared input and output of a parsed command line (see the module
     docstring); a one-line :class:`InputError` before any work."""
+    check_not_empty(args)
     inputs = check_inputs(args)
     seen: dict[Path, str] = {}
     renders = False
@@ -342,6 +373,48 @@ def gl_problem(value: str | None = None,
     elif platform.system() == "Linux" and v != "glx" and importlib.util.find_spec("glfw") is None:
         return (f"MUJOCO_GL={v or '(unset)'} means GLFW, whose Python package is not installed; "
                 "use MUJOCO_GL=egl for offscreen rendering")
+    return None
+
+
+def address_problem(address: str, timeout_s: float = 5.0) -> str | None:
+    """Why the Ray cluster at ``address`` (``HOST:PORT``, ``ray://HOST:PORT``; ``auto`` and
+    ``local`` are Ray's own) cannot be reached within ``timeout_s``, or None. Ray itself
+    retried an unreachable address for minutes, printing only its warnings."""
+    if address in ("auto", "local"):
+        return None
+    hostport = address.split("://", 1)[1] if "://" in address else address
+    host, _, port = hostport.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        return f"--address {address!r} must be HOST:PORT (or ray://HOST:PORT, auto, local)"
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            return None
+    except OSError as exc:
+        why = exc.strerror or str(exc) or "timed out"
+        return (f"cannot reach the Ray cluster at {address} ({why}, within {timeout_s:g} s): "
+                "start it (ray start --head) or check --address")
+
+
+def display_problem(display: str | None = None) -> str | None:
+    """Why the X display ``display`` (default ``$DISPLAY``) cannot be opened, or None (also
+    where there is no libX11 to ask). Asked before the viewer starts: GLFW's own failure
+    printed MuJoCo's error, exited 1 and left ``MUJOCO_LOG.TXT`` in the working folder."""
+    name = os.environ.get("DISPLAY", "") if display is None else display
+    lib = ctypes.util.find_library("X11")
+    if not name or lib is None:
+        return None
+    try:
+        x11 = ctypes.CDLL(lib)
+    except OSError:
+        return None
+    x11.XOpenDisplay.restype = ctypes.c_void_p
+    x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    handle = x11.XOpenDisplay(name.encode())
+    if not handle:
+        return (f"cannot open display {name} (no X server answers there): start one (Xvfb "
+                f"{name} &), or render offscreen with --video")
+    x11.XCloseDisplay(handle)
     return None
 
 

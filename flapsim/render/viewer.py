@@ -32,6 +32,7 @@ import mujoco.viewer
 import numpy as np
 
 from flapsim.core.errors import InputError
+from flapsim.core.validate import display_problem
 from flapsim.render.scene import Arrow, Item, Marker, Polyline, add_items  # noqa: F401 - re-exported for the animals' viewers
 from flapsim.render.video import Camera, CameraRig
 
@@ -66,6 +67,9 @@ def check_display() -> None:
                          "MUJOCO_GL=glfw and a display (or under Xvfb)")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise InputError("the viewer needs a display: set DISPLAY (e.g. run under Xvfb)")
+    problem = None if os.environ.get("WAYLAND_DISPLAY") else display_problem()
+    if problem:
+        raise InputError(problem)
 
 
 class AnimalViewer:

@@ -1,15 +1,17 @@
 """The finished runs of an evaluation, kept as each finishes, so that an interrupted
 ``flapsim eval --json PATH`` resumes where it stopped when the same command is run again.
 
-The journal is ``PATH.partial``: JSON lines, a header naming what was asked (a fingerprint
-of every run's scenario and options, the versions of flapsim and the packages whose numerics
-decide a flight (:func:`flapsim.core.environment.tag`), and the bytes of each database and path
-file the runs read), then one line per finished run, appended and synced as it arrives.
-A run is deterministic given what the fingerprint covers, so a run read back is the run that
-would be flown again. A line torn by ``kill -9`` is flown again; a journal of other runs (the
-options, a database or the code changed) is replaced by the new one; a file there that is no
-journal is left alone and refused in one line. The command removes the journal once PATH
-itself is written.
+The journal is ``PATH.partial``: JSON lines, a header, then one line per finished run,
+appended and synced as it arrives, under the run's own fingerprint: its scenario and
+options, the versions of flapsim and the packages whose numerics decide a flight
+(:func:`flapsim.core.environment.tag`), and the bytes of the database and path file it reads.
+A run is deterministic given what its fingerprint covers, so a run read back is the run that
+would be flown again, whichever eval asks for it: an eval of a subset of an interrupted one
+reuses the runs it shares with it. Runs an eval does not ask for stay in the journal (they
+are never deleted unasked). A line that is no finished run (torn by ``kill -9``, or edited)
+is skipped with a warning naming the file and line, and that run is flown again; a file
+there that is no journal is left alone and refused in one line. The command removes the
+journal once PATH itself is written, unless it holds runs of other evals.
 """
 
 from __future__ import annotations
@@ -21,12 +23,12 @@ from pathlib import Path
 from typing import Any
 
 from flapsim.bird.control.controller import bundled_database_path
-from flapsim.core.errors import InputError
-from flapsim.core.io import _jsonable, atomic_path
+from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.io import _jsonable, atomic_path, read_regular
 from flapsim.scenarios.registry import get
 
 KIND = "flapsim-eval-journal"
-VERSION = 1
+VERSION = 2
 SUFFIX = ".partial"
 
 
@@ -79,68 +81,136 @@ def fingerprint(runs: list[tuple[str, Any]], version: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-class RunJournal:
-    """Finished runs by index, on disk at ``path`` for runs of ``fingerprint``."""
+def run_keys(runs: list[tuple[str, Any]], version: str) -> list[str]:
+    """Each run's own fingerprint (:func:`fingerprint` of that run alone): a finished run is
+    reused by any eval that asks for the same run, whatever else it asks for."""
+    return [fingerprint([run], version) for run in runs]
 
-    def __init__(self, path: str | os.PathLike, fingerprint: str, n_runs: int) -> None:
+
+#: Entries a run's result must have, with their types, to be read back from a journal.
+_RESULT_ENTRIES = {"scenario": str, "family": str, "status": str, "ok": bool, "metrics": dict}
+
+
+def _record_problem(rec: Any, version: int) -> str | None:
+    """Why a journal line cannot be a finished run, or None."""
+    if not isinstance(rec, dict):
+        return "not a JSON object"
+    i = rec.get("i")
+    if type(i) is not int or i < 0:
+        return f"its run index {i!r} is not a whole number >= 0"
+    if version >= 2 and not isinstance(rec.get("run"), str):
+        return "it names no run"
+    result = rec.get("result")
+    if not isinstance(result, dict):
+        return "it has no result"
+    for key, kind in _RESULT_ENTRIES.items():
+        if not isinstance(result.get(key), kind):
+            return f"its result's {key!r} is {type(result.get(key)).__name__}, not {kind.__name__}"
+    return None
+
+
+class RunJournal:
+    """Finished runs, each under its own fingerprint (:func:`run_keys`), on disk at ``path``.
+
+    A journal holds the runs of every eval that used it: an eval of a subset, or of other
+    runs, reuses those it asks for and keeps the others (it never deletes runs it was not
+    asked to discard); it is removed once it holds nothing that the written results lack."""
+
+    def __init__(self, path: str | os.PathLike, keys: list[str], legacy: str | None = None) -> None:
         self.path = Path(path)
-        self.fingerprint = fingerprint
-        self.n_runs = int(n_runs)
-        self.stale = False
-        """True when :meth:`load` found a journal of other runs (it is replaced)."""
+        self.keys = list(keys)
+        self.n_runs = len(self.keys)
+        self.legacy = legacy
+        """The whole eval's :func:`fingerprint`: reads a journal of the first format."""
+        self.kept: list[dict] = []
+        """Records of runs this eval does not ask for (kept in the journal)."""
+        self.skipped: list[str] = []
+        """One line per journal line that could not be read (that run is flown again)."""
         self.resumed = 0
         """Runs :meth:`load` read back."""
         self._f = None
         self._bare = -1
 
+    @property
+    def stale(self) -> bool:
+        """Whether the journal holds runs of another eval (kept, not flown)."""
+        return bool(self.kept)
+
     def _header(self) -> dict:
-        return {"kind": KIND, "version": VERSION, "fingerprint": self.fingerprint,
-                "runs": self.n_runs}
+        return {"kind": KIND, "version": VERSION, "runs": self.n_runs}
 
     def load(self) -> dict[int, dict]:
-        """The runs already finished (none when there is no journal, or one of other runs);
-        a file there that is no eval journal is a one-line error."""
+        """The runs already finished, by index in this eval; a file there that is no eval
+        journal is a one-line error. A line that is no finished run (torn by a kill, or
+        edited) is skipped and named in :attr:`skipped`: that run is flown again."""
         if not self.path.exists():
             return {}
         try:
-            lines = self.path.read_bytes().split(b"\n")
+            lines = read_regular(self.path, "eval journal").split(b"\n")
             head = json.loads(lines[0])
-        except (OSError, ValueError, IndexError):
+        except DataFileError as exc:
+            raise InputError(f"{exc}; move it away or choose another --json") from None
+        except (ValueError, IndexError):
             head = None
         if not isinstance(head, dict) or head.get("kind") != KIND:
             raise InputError(f"{self.path} exists and is not an eval journal (flapsim eval keeps "
                              "its finished runs there): move it away or choose another --json")
-        if head.get("version") != VERSION or head.get("fingerprint") != self.fingerprint:
-            self.stale = True
-            return {}
-        done: dict[int, dict] = {}
-        for line in lines[1:]:
+        version = head.get("version")
+        if version not in (1, VERSION):
+            raise InputError(f"{self.path} is an eval journal of another flapsim (format "
+                             f"{version!r}); move it away or choose another --json")
+        same_eval = version == 1 and head.get("fingerprint") == self.legacy
+        by_key: dict[str, dict] = {}
+        for n, line in enumerate(lines[1:], start=2):
+            if not line.strip():
+                continue
             try:
                 rec = json.loads(line)
-                i, result = int(rec["i"]), rec["result"]
-            except (ValueError, KeyError, TypeError):
-                continue  # torn by a kill mid-write, or empty: that run is flown again
-            if 0 <= i < self.n_runs and isinstance(result, dict):
-                done[i] = result
+            except ValueError:
+                rec = None
+                problem = "not JSON (torn by an interrupted write?)"
+            else:
+                problem = _record_problem(rec, version)
+            if problem is not None:
+                self.skipped.append(f"{self.path} line {n}: {problem}; that run is flown again")
+                continue
+            if version == 1:
+                if not (same_eval and rec["i"] < self.n_runs):
+                    self.kept.append({**rec, "run": None, "eval": head.get("fingerprint")})
+                    continue
+                rec = {**rec, "run": self.keys[rec["i"]]}
+            by_key.setdefault(rec["run"], rec)
+        wanted = set(self.keys)
+        done: dict[int, dict] = {}
+        for i, key in enumerate(self.keys):
+            rec = by_key.get(key)
+            if rec is not None:
+                done[i] = rec["result"]
+        self.kept += [rec for key, rec in by_key.items() if key not in wanted]
         self.resumed = len(done)
         return done
 
     def open(self, done: dict[int, dict]) -> None:
-        """Start the journal afresh with ``done`` in it (written whole, then renamed), and
-        keep it open for :meth:`add`."""
+        """Write the journal afresh with ``done`` and the runs of other evals in it (whole,
+        then renamed), and keep it open for :meth:`add`."""
         with atomic_path(self.path, suffix=SUFFIX) as tmp:
             with open(tmp, "w") as f:
                 f.write(json.dumps(self._header()) + "\n")
                 for i in sorted(done):
-                    f.write(json.dumps(_jsonable({"i": i, "result": done[i]})) + "\n")
+                    f.write(json.dumps(_jsonable(self._record(i, done[i]))) + "\n")
+                for rec in self.kept:
+                    f.write(json.dumps(_jsonable(rec)) + "\n")
                 f.flush()
                 os.fsync(f.fileno())
         self._f = open(self.path, "a")
-        self._bare = self.path.stat().st_size if not done else -1
+        self._bare = self.path.stat().st_size if not (done or self.kept) else -1
+
+    def _record(self, i: int, result: dict) -> dict:
+        return {"i": int(i), "run": self.keys[i], "result": result}
 
     def add(self, i: int, result: dict) -> None:
         """Append run ``i``'s result and sync it to disk."""
-        self._f.write(json.dumps(_jsonable({"i": int(i), "result": result})) + "\n")
+        self._f.write(json.dumps(_jsonable(self._record(i, result))) + "\n")
         self._f.flush()
         os.fsync(self._f.fileno())
 
@@ -158,7 +228,13 @@ class RunJournal:
             if bare:
                 self.path.unlink(missing_ok=True)
 
-    def remove(self) -> None:
-        """The results are written: the journal is no longer needed."""
+    def finish(self) -> bool:
+        """The results are written: the journal goes, unless it holds runs of other evals
+        (then it stays, and True is returned)."""
         self.close()
+        if self.kept:
+            return True
         self.path.unlink(missing_ok=True)
+        return False
+
+    remove = finish

@@ -26,14 +26,14 @@ from flapsim import __version__
 from flapsim.bird.body.model import Dove
 from flapsim.bird.control.config import ControllerConfig
 from flapsim.bird.control.controller import bundled_database_path, database_dove
-from flapsim.bird.control.database import load_database, read_header
+from flapsim.bird.control.database import load_database
 from flapsim.bird.tasks.config import PathControlConfig
 from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
 from flapsim.bird.training.train import run_header, same_entry, train
 from flapsim.core import environment
 from flapsim.core.errors import InputError
 from flapsim.core.parallel import ChunkExecutor, WorkerError, usable_cores
-from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path
+from flapsim.scenarios.journal import RunJournal, fingerprint, journal_path, run_keys
 from flapsim.scenarios.registry import (
     EvalOptions,
     completion_interval,
@@ -114,9 +114,11 @@ def lookahead_runs(runs: list[Run], workers: int | None, backend: str = "local")
 
 
 def check_database(db: str, feathers: str) -> None:
-    """A database of another dove is a one-line error before any worker starts (each run
-    would fail alike)."""
-    have, want = read_header(db).get("model_hash"), database_dove(db, feathers).hash()
+    """A damaged database (the whole file is read: every chunk's CRC), an unfinished one, or
+    one of another dove is a one-line error before any worker starts (each run would fail
+    alike)."""
+    have = load_database(db, require_finalized=True).header.get("model_hash")
+    want = database_dove(db, feathers).hash()
     if have != want:
         other = "modal" if feathers == "rigid" else "rigid"
         hint = (f"fly it with --feathers {other}" if have == Dove.load(feathers=other).hash()
@@ -131,7 +133,8 @@ def open_journal(json_path: str | None, runs: list[Run]) -> RunJournal | None:
     if not json_path or json_path == "-":
         return None
     # the packages too: the same runs flown with another numpy may end otherwise (environment)
-    return RunJournal(journal_path(json_path), fingerprint(runs, environment.tag()), len(runs))
+    tag = environment.tag()
+    return RunJournal(journal_path(json_path), run_keys(runs, tag), legacy=fingerprint(runs, tag))
 
 
 def execute(runs: list[Run], workers: int | None, backend: str = "local",
@@ -145,11 +148,19 @@ def execute(runs: list[Run], workers: int | None, backend: str = "local",
     out: list[dict | None] = [None] * n
     if journal is not None:
         done = journal.load()
+        for line in journal.skipped:
+            say(line)
         if journal.stale:
-            say(f"{journal.path} holds the runs of another eval (other options, databases, "
-                "path files or flapsim version): starting afresh")
+            say(f"{journal.path} also holds {len(journal.kept)} runs this eval does not ask for "
+                "(other scenarios, options, databases, path files or flapsim version): kept")
         for i, r in done.items():
+            if r.get("scenario") != runs[i][0]:  # a line edited to another index
+                say(f"{journal.path}: the run kept for {runs[i][0]} is of {r.get('scenario')!r}; "
+                    "it is flown again")
+                continue
             out[i] = r
+        done = {i: r for i, r in done.items() if out[i] is not None}
+        journal.resumed = len(done)
         if done:
             say(f"resuming: {len(done)} of {n} runs finished before, read from {journal.path}")
         journal.open(done)

@@ -43,7 +43,7 @@ from tqdm import tqdm
 
 from flapsim import __version__
 from flapsim.core.errors import DataFileError, InputError
-from flapsim.core.io import write_json
+from flapsim.core.io import read_regular, write_json
 from flapsim.core.parallel import ChunkExecutor, WorkerError
 from flapsim.swim.continuous import HandRules, calibration_settings
 from flapsim.swim.feedback import wrap_angle
@@ -82,11 +82,34 @@ def attitude(data: mujoco.MjData, trunk: int, forward_axis: int, head: int | Non
                      math.asin(float(np.clip(left[2], -1, 1)))])
 
 
-def table_path(stroke: Stroke, body_shape: str = "box") -> Path:
+def _bundled(p: Path) -> bool:
+    """Whether ``p`` lies in the package's own stroke folder (read-only once installed)."""
+    try:
+        return p.resolve().is_relative_to(STROKE_DIR.resolve())
+    except OSError:
+        return False
+
+
+def user_table_dir() -> Path:
+    """Where calibrations of the bundled strokes are written: the package is read-only
+    (``$FLAPSIM_DATA``, else ``$XDG_DATA_HOME/flapsim``, else ``~/.local/share/flapsim``)."""
+    base = os.environ.get("FLAPSIM_DATA") or os.path.join(
+        os.environ.get("XDG_DATA_HOME") or os.path.join(os.path.expanduser("~"), ".local", "share"),
+        "flapsim")
+    return Path(base) / "tables"
+
+
+def table_path(stroke: Stroke, body_shape: str = "box", for_writing: bool = False) -> Path:
     """Where a stroke's calibration table lives: next to its file (``NAME.cycle.json``
-    for the box body, ``NAME.rounded.cycle.json`` for the rounded one)."""
+    for the box body, ``NAME.rounded.cycle.json`` for the rounded one); for a bundled
+    stroke, a calibration of the user's (:func:`user_table_dir`) when there is one, else the
+    bundled table. ``for_writing``: where a new calibration goes (never into the package)."""
     p = Path(stroke.path) if stroke.path else STROKE_DIR / f"{stroke.name}.toml"
-    return p.with_name(p.stem + ("" if body_shape == "box" else f".{body_shape}") + ".cycle.json")
+    beside = p.with_name(p.stem + ("" if body_shape == "box" else f".{body_shape}") + ".cycle.json")
+    if not _bundled(p):
+        return beside
+    mine = user_table_dir() / beside.name
+    return mine if for_writing or mine.is_file() else beside
 
 
 def stroke_hash(stroke: Stroke) -> str:
@@ -167,6 +190,11 @@ class CycleTable:
         bad = set(angles) - set(CYCLE_SEQUENCES)
         if bad:
             raise DataFileError(f"{where}: unknown sequences {sorted(bad)}")
+        for name, a in (("speeds_m_s", speeds), ("weights", weights), ("cycle_start_offset_deg",
+                        offsets), ("level_pitch_roll_deg", level), *angles.items()):
+            if not np.all(np.isfinite(a)):  # a NaN table was taken, and the swimmer never steered
+                raise DataFileError(f"{where}: {name} holds non-finite numbers (NaN or infinity); "
+                                    "recalibrate (flapsim swim --calibrate)")
         return cls(str(d.get("stroke", "")), speeds, weights, angles, offsets, level,
                    dict(d.get("provenance", {})))
 
@@ -207,14 +235,33 @@ def load_table(stroke: Stroke, path: str | Path | None = None, check: bool = Tru
 
 
 # ------------------------------------------------------------------ the layer
+#: speeds that may be asked [m/s] (a slow recreational swim .. a fast one)
+SPEED_RANGE = (0.5, 1.6)
+#: stroke rates the speed control may set, as fractions of the stroke's own
+RATE_RANGE = (0.35, 1.3)
+#: exponent of the per-cycle rate correction (below 1: a cycle's speed lags its rate)
+SPEED_GAIN = 0.7
+
+
 class CycleLayer:
     """Call :meth:`update` at the control rate (it acts once per cycle)."""
 
     def __init__(self, basic: BasicStrokeLayer, table: CycleTable, target: object | None = None,
-                 feedback: object | None = None, gain: float = 1.0) -> None:
+                 feedback: object | None = None, gain: float = 1.0,
+                 speed: float | None = None) -> None:
         st = basic.stroke
         if not st.cycle:
             raise InputError(f"stroke {st.name!r} has no [cycle.*] sequences")
+        if speed is not None and not (SPEED_RANGE[0] <= speed <= SPEED_RANGE[1]):
+            raise InputError(f"the speed asked must be {SPEED_RANGE[0]:g}..{SPEED_RANGE[1]:g} "
+                             f"m/s, got {speed:g}")
+        if speed is not None and st.posture != "prone":
+            raise InputError(f"stroke {st.name!r} swims on the spot: a speed is asked of the "
+                             "prone strokes (crawl, breaststroke)")
+        #: the speed asked [m/s] (None: the stroke's own rate); held by the stroke rate
+        self.speed = speed
+        self.rate0 = float(basic.rate_hz)
+        self._last: tuple[float, np.ndarray] | None = None
         self.basic = basic
         self.table = table
         self.target = target
@@ -261,6 +308,8 @@ class CycleLayer:
         sw = self.basic.swimmer
         heading, elev = self.desired(data)
         speed = float(np.linalg.norm(data.subtree_linvel[self.root]))
+        if self.speed is not None:
+            self._hold_speed(data)
         off, level = self.table.baseline(speed)
         att = attitude(data, self.trunk, self.forward_axis, self.head) - off
         errors = {"yaw": 0.0 if heading is None else wrap_angle(heading - att[0]),
@@ -287,6 +336,24 @@ class CycleLayer:
                              **{f"{k}_error_deg": math.degrees(v) for k, v in errors.items()},
                              **w})
         return w
+
+    def _hold_speed(self, data: mujoco.MjData) -> None:
+        """Set the next cycle's stroke rate for the speed asked: at the first cycle from
+        the stroke's full speed (the table's fastest), then from the speed of the cycle
+        just swum (horizontal, centre of mass): distance per stroke hardly changes with the
+        rate, so speed ~ rate, corrected by (asked / swum)^SPEED_GAIN each cycle."""
+        t = float(data.time)
+        xy = data.subtree_com[self.root][:2].copy()
+        b = self.basic
+        if self._last is None:
+            full = float(np.max(self.table.speeds))
+            rate = self.rate0 * self.speed / max(full, 0.1)
+        else:
+            t0, xy0 = self._last
+            swum = float(np.linalg.norm(xy - xy0)) / max(t - t0, 1e-6)
+            rate = b.rate_hz * (self.speed / max(swum, 0.05)) ** SPEED_GAIN
+        b.rate_hz = float(np.clip(rate, RATE_RANGE[0] * self.rate0, RATE_RANGE[1] * self.rate0))
+        self._last = (t, xy)
 
     def summary(self) -> dict:
         """Per sequence: mean weight and the fraction of cycles it was used."""
@@ -493,27 +560,59 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
                       {s: a[order] for s, a in angles.items()}, offsets[order], level[order], prov)
 
 
-def _read_journal(path: Path, header: dict) -> dict[int, dict]:
-    """Finished jobs from a journal started with the same ``header`` (a torn last line
-    is ignored); a journal of another run is an error."""
+def _job_problem(r: object, jobs: list) -> str | None:
+    """Why ``r`` is not the result of one of ``jobs``, or None."""
+    if not isinstance(r, dict):
+        return "a result is not a JSON object"
+    i = r.get("i")
+    if type(i) is not int or not 0 <= i < len(jobs):
+        return f"result index {i!r} is not one of the {len(jobs)} cycles"
+    if [r.get("layers"), r.get("snapshot"), r.get("sequence"), r.get("weight")] != \
+            json.loads(json.dumps(list(jobs[i]))):
+        return f"result {i} is not of cycle {i}'s job"
+    for key in ("start", "end", "mean"):
+        v = r.get(key)
+        if not (isinstance(v, list) and v and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in v)):
+            return f"result {i} has no finite {key!r} numbers"
+    return None
+
+
+def _read_journal(path: Path, header: dict, jobs: list) -> dict[int, dict]:
+    """Finished jobs from a journal started with the same ``header``; a journal of another
+    run is an error. A line that holds no finished jobs (torn by an interruption, or edited)
+    is skipped with a warning naming the file and line: its jobs are run again."""
     done: dict[int, dict] = {}
-    lines = path.read_text().splitlines()
+    lines = read_regular(path, "calibration journal").decode("utf-8", "replace").splitlines()
     if not lines:
         return done
     try:
         first = json.loads(lines[0])
     except ValueError:
-        raise DataFileError(f"{path}: not a calibration journal; delete it to start over") from None
+        first = None
+    if not isinstance(first, dict) or "header" not in first:
+        raise DataFileError(f"{path}: not a calibration journal; delete it to start over")
     if first.get("header") != json.loads(json.dumps(header)):
         raise InputError(f"{path} belongs to another calibration (other stroke file, settings or "
                          "flapsim version); delete it to start over")
-    for line in lines[1:]:
+    for n, line in enumerate(lines[1:], start=2):
         try:
             rec = json.loads(line)
         except ValueError:
-            break  # torn by an interruption
+            rec, problem = None, "not JSON (torn by an interrupted write?)"
+        else:
+            results = rec.get("results") if isinstance(rec, dict) else None
+            problem = None if isinstance(results, list) else "no list of results"
+            for r in results if problem is None else ():
+                problem = _job_problem(r, jobs)
+                if problem:
+                    break
+        if problem is not None:
+            log.warning("%s line %d: %s; its cycles are run again", path, n, problem)
+            continue
         for r in rec["results"]:
-            done[int(r["i"])] = r
+            done[r["i"]] = r
     return done
 
 
@@ -535,7 +634,9 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
     if not weights or any(not (0 < w <= 1) for w in weights):
         raise InputError("calibration weights must be in (0, 1]")
     out_p = Path(out) if out is not None else table_path(
-        st, (params or {}).get("body_shape", "box"))
+        st, (params or {}).get("body_shape", "box"), for_writing=True)
+    if out is None:
+        out_p.parent.mkdir(parents=True, exist_ok=True)
     config = CalibrationConfig(str(Path(st.path).resolve()), stroke_hash(st),
                                tuple(int(c) for c in sorted(set(snapshot_cycles))),
                                tuple(float(w) for w in sorted(set(weights))), dict(params or {}))
@@ -543,7 +644,7 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
     journal = out_p.with_name(out_p.name + ".partial.jsonl")
 
     ident = {"flapsim_version": __version__, "config": asdict(config)}
-    done = _read_journal(journal, ident) if journal.is_file() else {}
+    done = _read_journal(journal, ident, jobs) if journal.exists() else {}
     todo = [i for i in range(len(jobs)) if i not in done]
     # contiguous runs of todo indices, chunk_size at most
     chunks = []

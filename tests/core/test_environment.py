@@ -35,9 +35,11 @@ def test_an_eval_journal_of_other_packages_is_not_resumed(tmp_path, monkeypatch)
     runs = [("wind-steady", EvalOptions(quick=True))]
     j = runner.open_journal(json_path, runs)
     j.open({})
-    j.add(0, {"status": "completed"})
+    done = {"scenario": "wind-steady", "family": "flight", "status": "completed", "ok": True,
+            "metrics": {}}
+    j.add(0, done)
     j.close()
-    assert runner.open_journal(json_path, runs).load() == {0: {"status": "completed"}}
+    assert runner.open_journal(json_path, runs).load() == {0: done}
     real = environment.versions
     monkeypatch.setattr(environment, "versions", lambda: {**real(), "numpy": "0.0.1"})
     other = runner.open_journal(json_path, runs)

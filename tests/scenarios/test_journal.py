@@ -92,22 +92,88 @@ def test_a_journal_is_of_the_runs_asked_and_their_files(tmp_path):
     assert fingerprint(runs, "1.0") != f
 
 
+def _result(name, status="completed"):
+    """A run's result as :func:`flapsim.scenarios.registry.run_scenario` returns it."""
+    return {"scenario": name, "family": "flight", "summary": "", "status": status,
+            "ok": status == "completed", "metrics": {"Ep_per_wingbeat": 0.05}, "files": [],
+            "reason": "", "wall_s": 1.5}
+
+
 def test_torn_stale_and_foreign_journals(tmp_path):
     path = journal_path(tmp_path / "r.json")
     assert path.name == "r.json.partial"
-    j = RunJournal(path, "abc", 3)
-    j.open({0: {"status": "completed"}})
-    j.add(2, {"status": "lost"})
+    j = RunJournal(path, ["k0", "k1", "k2"])
+    j.open({0: _result("a")})
+    j.add(2, _result("c", "lost"))
     j.close()
     with open(path, "a") as f:
-        f.write('{"i": 1, "result": {"sta')  # torn by a kill mid-line
-    assert RunJournal(path, "abc", 3).load() == {0: {"status": "completed"}, 2: {"status": "lost"}}
-    other = RunJournal(path, "xyz", 3)
-    assert other.load() == {} and other.stale  # other runs: flown afresh, the journal replaced
+        f.write('{"i": 1, "run": "k1", "result": {"sta')  # torn by a kill mid-line
+    again = RunJournal(path, ["k0", "k1", "k2"])
+    assert again.load() == {0: _result("a"), 2: _result("c", "lost")}
+    assert len(again.skipped) == 1 and "line 4" in again.skipped[0]
+    # other runs: none resumed, and the journal's runs are kept (never deleted unasked)
+    other = RunJournal(path, ["x0", "x1", "x2"])
+    assert other.load() == {} and other.stale and len(other.kept) == 2
+    other.open({})
+    other.close()
+    assert RunJournal(path, ["k0", "k1", "k2"]).load() == {0: _result("a"), 2: _result("c", "lost")}
     path.write_text("my notes, not a journal\n")
     with pytest.raises(InputError, match="not an eval journal"):
-        RunJournal(path, "abc", 3).load()
+        RunJournal(path, ["k0"]).load()
     assert path.read_text() == "my notes, not a journal\n"  # left alone
+
+
+@pytest.mark.parametrize("line, problem", [
+    ('{"i": 1, "run": "k1", "result": {}}', "'scenario'"),
+    ('{"i": 1, "run": "k1", "result": {"scenario": "b", "family": "flight", "status": "completed", '
+     '"ok": true, "metrics": "fast"}}', "'metrics' is str"),
+    ('{"i": "0", "run": "k0", "result": {}}', "run index '0'"),
+    ('[1, 2]', "not a JSON object"),
+    ('{"i": 1, "result": {"scenario": "b"}}', "names no run"),
+])
+def test_a_bad_journal_line_is_named_and_its_run_flown_again(tmp_path, line, problem):
+    """A corrupted line made every rerun fly the other runs, then die with KeyError or
+    AttributeError; now it is skipped before any work, with its file and line named."""
+    path = journal_path(tmp_path / "r.json")
+    j = RunJournal(path, ["k0", "k1"])
+    j.open({0: _result("a")})
+    j.close()
+    with open(path, "a") as f:
+        f.write(line + "\n")
+    again = RunJournal(path, ["k0", "k1"])
+    assert again.load() == {0: _result("a")}
+    assert len(again.skipped) == 1 and again.skipped[0].startswith(f"{path} line 3: ")
+    assert problem in again.skipped[0] and "flown again" in again.skipped[0]
+
+
+def test_an_eval_of_a_subset_reuses_its_runs_and_keeps_the_others(tmp_path, monkeypatch):
+    """Four runs asked, three finished, then the same --json with two of them: both are read
+    back (none flown: the executor is never built), and the journal keeps the third finished
+    run, which a rerun of the four reads back too (before: 'starting afresh', all deleted)."""
+    from flapsim.core.parallel import ChunkExecutor
+    from flapsim.scenarios.runner import execute, open_journal
+
+    def no_flying(*a, **k):
+        raise AssertionError("a finished run was flown again")
+
+    monkeypatch.setattr(ChunkExecutor, "__init__", no_flying)
+    names = ["figure8-level", "wind-steady", "push-up", "figure8"]
+    four = [(n, EvalOptions(quick=True)) for n in names]
+    out = tmp_path / "q.json"
+    j = open_journal(str(out), four)
+    j.load()
+    j.open({})
+    for i in (0, 1, 2):
+        j.add(i, _result(names[i]))
+    j.close()
+    said = []
+    sub = open_journal(str(out), [four[1], four[0]])
+    results = execute([four[1], four[0]], 1, journal=sub, say=said.append)
+    assert results == [_result("wind-steady"), _result("figure8-level")]
+    assert sub.resumed == 2 and len(sub.kept) == 1
+    assert sub.finish() and journal_path(out).exists()  # push-up's run is kept
+    again = open_journal(str(out), four)
+    assert again.load() == {i: _result(names[i]) for i in (0, 1, 2)}
 
 
 def test_a_run_written_when_ctrl_c_lands_is_kept(tmp_path, monkeypatch):
@@ -115,7 +181,7 @@ def test_a_run_written_when_ctrl_c_lands_is_kept(tmp_path, monkeypatch):
     returns (here, inside its fsync). The journal's close must keep that run, or the
     interrupted eval throws away a finished run and tells the user nothing can resume."""
     path = journal_path(tmp_path / "r.json")
-    j = RunJournal(path, "abc", 2)
+    j = RunJournal(path, ["k0", "k1"])
     j.open({})
     real_fsync = os.fsync
 
@@ -125,11 +191,11 @@ def test_a_run_written_when_ctrl_c_lands_is_kept(tmp_path, monkeypatch):
 
     monkeypatch.setattr(os, "fsync", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        j.add(0, {"status": "completed"})
+        j.add(0, _result("a"))
     monkeypatch.setattr(os, "fsync", real_fsync)
     j.close()
-    assert RunJournal(path, "abc", 2).load() == {0: {"status": "completed"}}
-    empty = RunJournal(journal_path(tmp_path / "e.json"), "abc", 2)
+    assert RunJournal(path, ["k0", "k1"]).load() == {0: _result("a")}
+    empty = RunJournal(journal_path(tmp_path / "e.json"), ["k0", "k1"])
     empty.open({})
     empty.close()
     assert not empty.path.exists()  # no run finished: nothing to resume from, no file left

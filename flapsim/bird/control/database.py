@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from flapsim import __version__
-from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.errors import DataFileError, InputError, OutputError
 from flapsim.core.io import _jsonable, atomic_path, file_sha256
 
 log = logging.getLogger(__name__)
@@ -301,8 +301,28 @@ def _scan(path: Path, data: bytes) -> tuple[dict, list, int, int]:
     return header, records, pos, size - pos
 
 
-def _assemble(path: Path | None, header: dict, records: list, torn: int) -> Database:
+def _same_record(a: tuple, b: tuple) -> bool:
+    """Whether two decoded records hold the same chunk with the same samples."""
+    (da, ia, xa), (db_, ib, xb) = a, b
+    return (da == db_ and np.array_equal(ia, ib) and xa.keys() == xb.keys()
+            and all(np.array_equal(xa[k], xb[k]) for k in xa))
+
+
+def _dedupe(records: list) -> list:
+    """``records`` sorted by start, each chunk once: a chunk written twice with the same
+    samples (two runs of one journal that each ran it: a sample depends only on the seed
+    and its index) is one chunk, not damage."""
     records = sorted(records, key=lambda r: r[0]["start"])
+    out: list = []
+    for r in records:
+        if out and r[0]["start"] == out[-1][0]["start"] and _same_record(out[-1], r):
+            continue
+        out.append(r)
+    return out
+
+
+def _assemble(path: Path | None, header: dict, records: list, torn: int) -> Database:
+    records = _dedupe(records)
     for (a, _, _), (b, _, _) in zip(records, records[1:], strict=False):
         if b["start"] < a["stop"]:
             raise DataFileError(f"{path} has overlapping chunks {a['start']}..{a['stop']} and "
@@ -326,15 +346,22 @@ def _assemble(path: Path | None, header: dict, records: list, torn: int) -> Data
 
 
 def _read_bytes(path: Path) -> bytes:
+    _read_bytes_checks(path)
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise DataFileError(f"cannot read database {path}: {exc.strerror}") from None
+
+
+def _read_bytes_checks(path: Path) -> None:
     if not path.exists():
         raise DataFileError(f"database {path} does not exist; check the path or create it with "
                             f"flapsim train --out {path}")
     if path.is_dir():
         raise DataFileError(f"database {path} is a folder; pass the database file")
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise DataFileError(f"cannot read database {path}: {exc.strerror}") from None
+    if not path.is_file():  # reading a device (/dev/zero) grows without end
+        raise DataFileError(f"database {path} is not a regular file (a device, pipe or socket); "
+                            "pass the database file")
 
 
 def check_header(db_header: dict, path: Path | str, *, kind: str | None = None,
@@ -401,8 +428,8 @@ def _signals_deferred() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-def _write_atomic(path: Path, blobs: list[bytes]) -> None:
-    with atomic_path(path) as tmp:
+def _write_atomic(path: Path, blobs: list[bytes], exclusive: bool = False) -> None:
+    with atomic_path(path, exclusive=exclusive) as tmp:
         with open(tmp, "wb") as fh:
             for b in blobs:
                 fh.write(b)
@@ -410,63 +437,154 @@ def _write_atomic(path: Path, blobs: list[bytes]) -> None:
             os.fsync(fh.fileno())
 
 
-class DatabaseWriter:
-    """Appends chunk records to a database journal (one writer per file: an exclusive
-    lock refuses a second one)."""
+class FinishedDatabase(InputError):
+    """The journal to resume was finished meanwhile (by another run of it)."""
 
-    def __init__(self, path: Path, header: dict, end: int, fsync: bool = True) -> None:
-        self.path = path
-        self.header = header
-        self.fsync = fsync
+
+def _lock_file(path: Path) -> Any:
+    """``path`` opened for update under an exclusive lock (a second writer is refused in one
+    line), checked to still be the file at ``path``: one finished meanwhile was renamed over
+    it, and the lock is then taken on the new file."""
+    for _ in range(8):
         try:
-            self._fh = open(path, "r+b")  # noqa: SIM115 - closed in close()
+            fh = open(path, "r+b")  # noqa: SIM115 - the caller closes it
+        except FileNotFoundError:
+            raise DataFileError(f"database {path} does not exist; check the path or create it "
+                                f"with flapsim train --out {path}") from None
         except OSError as exc:
             raise InputError(f"cannot write database {path}: {exc.strerror}") from None
         try:
-            fcntl.flock(self._fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            self._fh.close()
+            fh.close()
             raise InputError(f"{path} is being written by another flapsim train; wait for it or "
                              "choose another --out") from None
+        try:
+            st, now = os.fstat(fh.fileno()), os.stat(path)
+            if (st.st_ino, st.st_dev) == (now.st_ino, now.st_dev):
+                return fh
+        except FileNotFoundError:
+            pass
+        fh.close()
+    raise InputError(f"{path} keeps being replaced while it is opened; is another program "
+                     "writing it? choose another --out")
+
+
+def _read_locked(fh: Any, path: Path) -> bytes:
+    try:
+        fh.seek(0)
+        return fh.read()
+    except OSError as exc:
+        raise DataFileError(f"cannot read database {path}: {exc.strerror}") from None
+
+
+@contextlib.contextmanager
+def _locked(path: Path, writer: DatabaseWriter | None = None) -> Iterator[Any]:
+    """The file at ``path`` under the journal's lock (``writer``'s when it holds it)."""
+    if writer is not None and not writer.closed:
+        yield writer._fh
+        return
+    _read_bytes_checks(path)
+    try:
+        fh = _lock_file(path)
+    except InputError:
+        if os.access(path, os.W_OK):
+            raise
+        fh = None  # a read-only file: nobody appends to it
+    if fh is None:
+        with _open_read(path) as ro:
+            yield ro
+        return
+    try:
+        yield fh
+    finally:
+        fh.close()
+
+
+class DatabaseWriter:
+    """Appends chunk records to a database journal (one writer per file: an exclusive
+    lock refuses a second one). What the file holds is read under the lock, so a chunk
+    another run of the same journal wrote before this one took the lock is known
+    (:attr:`chunks`) and not written twice."""
+
+    def __init__(self, path: Path, header: dict, fh: Any, end: int, fsync: bool = True,
+                 chunks: set[tuple[int, int]] | None = None) -> None:
+        self.path = path
+        self.header = header
+        self.fsync = fsync
+        self.chunks: set[tuple[int, int]] = set(chunks or ())
+        """(start, stop) of every chunk in the file"""
+        self._fh = fh
         self._fh.seek(end)
         self._fh.truncate(end)
         self._end = end
 
+    @property
+    def closed(self) -> bool:
+        return self._fh.closed
+
     @classmethod
     def create(cls, path: str | os.PathLike, header: dict, fsync: bool = True) -> DatabaseWriter:
         """Start a new journal at ``path`` (which must not exist) with ``header``
-        (``fields`` is required; kind, versions and ``finalized`` are filled in)."""
+        (``fields`` is required; kind, versions and ``finalized`` are filled in). The file
+        appears whole, and never replaces one another run created meanwhile."""
         path = Path(path)
         if path.exists():
             raise InputError(f"{path} already exists; resume it or choose another --out")
         header = _complete_header(header, finalized=False)
         blob = _encode_preamble(header)
-        _write_atomic(path, [blob])
-        return cls(path, header, len(blob), fsync)
+        try:
+            _write_atomic(path, [blob], exclusive=True)
+        except FileExistsError:
+            raise InputError(f"{path} already exists; resume it or choose another --out") from None
+        writer, _ = cls.resume(path, fsync)
+        return writer
 
     @classmethod
     def resume(cls, path: str | os.PathLike, fsync: bool = True) -> tuple[DatabaseWriter, Database]:
-        """Reopen a journal: its torn last chunk (if any) is cut off."""
+        """Reopen a journal: its torn last chunk (if any) is cut off. The file is read after
+        the lock is taken: what another run appended before is kept, never cut off."""
         path = Path(path)
-        header, records, end, torn = _scan(path, _read_bytes(path))
-        if header.get("finalized"):
-            raise InputError(f"{path} is a finished database; choose another --out")
-        db = _assemble(path, header, records, torn)
+        _read_bytes_checks(path)
+        fh = _lock_file(path)
+        try:
+            header, records, end, torn = _scan(path, _read_locked(fh, path))
+            if header.get("finalized"):
+                raise FinishedDatabase(f"{path} is a finished database; choose another --out")
+            db = _assemble(path, header, records, torn)
+        except BaseException:
+            fh.close()
+            raise
         if torn:
             log.warning("%s: cutting off %d bytes of an interrupted chunk", path, torn)
-        return cls(path, header, end, fsync), db
+        chunks = {(int(d["start"]), int(d["stop"])) for d, _, _ in records}
+        return cls(path, header, fh, end, fsync, chunks), db
 
-    def append(self, result: Any) -> None:
-        """Append one chunk (a :class:`ChunkResult`-like object) as one record."""
-        blob = _encode_record(self.header, int(result.start), int(result.stop),
-                              np.asarray(result.index), result.arrays, result.rejected)
+    def append(self, result: Any) -> bool:
+        """Append one chunk (a :class:`ChunkResult`-like object) as one record; False (and
+        nothing written) when the file holds that chunk already."""
+        start, stop = int(result.start), int(result.stop)
+        if (start, stop) in self.chunks:
+            return False
+        blob = _encode_record(self.header, start, stop, np.asarray(result.index), result.arrays,
+                              result.rejected)
         with _signals_deferred():
-            self._fh.seek(self._end)
-            self._fh.write(blob)
-            self._fh.flush()
-            if self.fsync:
-                os.fsync(self._fh.fileno())
+            try:
+                self._fh.seek(self._end)
+                self._fh.write(blob)
+                self._fh.flush()
+                if self.fsync:
+                    os.fsync(self._fh.fileno())
+            except OSError as exc:
+                # a full disk: the chunks before are whole; the part written is cut off
+                with contextlib.suppress(OSError):
+                    self._fh.truncate(self._end)
+                raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}; the "
+                                  f"{len(self.chunks)} chunks written so far are kept: free "
+                                  "space and run the same command again to resume") from None
             self._end += len(blob)
+        self.chunks.add((start, stop))
+        return True
 
     def close(self) -> None:
         if not self._fh.closed:
@@ -494,20 +612,22 @@ def _complete_header(header: dict, finalized: bool) -> dict:
 
 
 def _write_final(path: Path, header: dict, index: np.ndarray, arrays: Mapping[str, np.ndarray],
-                 rejected: Mapping[str, int], examined: int) -> None:
+                 rejected: Mapping[str, int], examined: int, exclusive: bool = False) -> None:
     header = _complete_header({**header, "samples": int(index.shape[0]),
                                "examined": int(examined)}, finalized=True)
     record = _encode_record(header, 0, int(examined), index, arrays,
                             dict(sorted(rejected.items())))
     with _signals_deferred():
-        _write_atomic(path, [_encode_preamble(header), record])
+        _write_atomic(path, [_encode_preamble(header), record], exclusive=exclusive)
 
 
 def save_database(path: str | os.PathLike, header: dict, index: np.ndarray,
-                  arrays: Mapping[str, np.ndarray], rejected: Mapping[str, int]) -> None:
+                  arrays: Mapping[str, np.ndarray], rejected: Mapping[str, int],
+                  exclusive: bool = False) -> None:
     """Write a whole finished database at once, atomically (derived or bundled
     databases). Samples are sorted by index; ``fields`` is taken from ``arrays``;
-    ``header['examined']`` (default: last index + 1) is the sample range covered."""
+    ``header['examined']`` (default: last index + 1) is the sample range covered.
+    ``exclusive``: never replace a file at ``path`` (FileExistsError)."""
     index = np.asarray(index)
     if index.ndim != 1 or index.dtype.kind not in "iu":
         raise InputError(f"cannot save {path}: index must be a 1-d integer array")
@@ -525,7 +645,7 @@ def save_database(path: str | os.PathLike, header: dict, index: np.ndarray,
     examined = int(header.get("examined", int(index[-1]) + 1 if index.size else 0))
     head = {k: v for k, v in header.items() if k not in ("samples", "examined")}
     head["fields"] = fields_spec(sorted_arrays)
-    _write_final(Path(path), head, index, sorted_arrays, rejected, examined)
+    _write_final(Path(path), head, index, sorted_arrays, rejected, examined, exclusive)
 
 
 def contiguous_prefix(chunks: list[tuple[int, int, int]]) -> list[tuple[int, int, int]]:
@@ -540,14 +660,23 @@ def contiguous_prefix(chunks: list[tuple[int, int, int]]) -> list[tuple[int, int
 
 
 def finalize_database(path: str | os.PathLike, n_samples: int | None = None,
-                      float32: bool = False) -> Database:
+                      float32: bool = False, writer: DatabaseWriter | None = None) -> Database:
     """Rewrite a journal as a finished database: the first ``n_samples`` accepted
     samples by index (all of the gap-free prefix of chunks when ``None``), in index
     order, in one record; the rejected counts of the chunks used. Written to a
     temporary file and renamed over ``path``. ``float32``: store float fields in single
-    precision (half the size; the journal keeps double, so a resumed run is unchanged)."""
+    precision (half the size; the journal keeps double, so a resumed run is unchanged).
+
+    Done under the journal's lock (``writer``'s, when the caller holds it): another run of
+    the same journal appending while this one reads would be cut off by the rename."""
     path = Path(path)
-    header, records, _, torn = _scan(path, _read_bytes(path))
+    with _locked(path, writer) as fh:
+        return _finalize_locked(path, _read_locked(fh, path), n_samples, float32)
+
+
+def _finalize_locked(path: Path, data: bytes, n_samples: int | None, float32: bool) -> Database:
+    header, records, _, torn = _scan(path, data)
+    records = _dedupe(records)
     db = _assemble(path, header, records, torn)
     if db.finalized:
         if n_samples is not None and db.n != n_samples:
@@ -570,7 +699,8 @@ def finalize_database(path: str | os.PathLike, n_samples: int | None = None,
     if index.size and index[-1] >= examined:  # only possible with a gap: never past the prefix
         raise InputError(f"{path}: samples beyond the complete chunks")
     arrays = {k: v[:keep] for k, v in db.arrays.items()}
-    fin = {k: v for k, v in header.items() if k not in ("samples", "examined")}
+    # what the journal alone needs (the size asked, for a resume) is not the database's
+    fin = {k: v for k, v in header.items() if k not in ("samples", "examined", "samples_asked")}
     if float32:
         arrays = {k: v.astype("<f4") if v.dtype.kind == "f" else v for k, v in arrays.items()}
         fin["fields"] = fields_spec(arrays)
@@ -624,7 +754,11 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
 
     if len(paths) < 2:
         raise InputError(f"a merge needs at least two databases, got {len(paths)}")
+    if Path(out).exists():
+        raise InputError(f"{out} exists; a merge writes a new database: choose another --out, "
+                         "or delete it first")
     dbs = [load_database(p, require_finalized=True) for p in paths]
+    _refuse_overlap(paths, dbs)
     first, p0 = dbs[0], Path(paths[0])
     names = sorted(set(first.arrays) - set(MERGE_FIELDS))
     prov0 = first.header.get("provenance") or {}
@@ -658,5 +792,38 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
               "provenance": {**{k: prov0[k] for k in same if k in prov0}, "parts": parts},
               "examined": int(sum(int(db.header.get("examined", db.n)) for db in dbs))}
     n = int(arrays["part"].shape[0])
-    save_database(out, header, np.arange(n, dtype=np.int64), arrays, rejected)
+    try:
+        save_database(out, header, np.arange(n, dtype=np.int64), arrays, rejected, exclusive=True)
+    except FileExistsError:
+        raise InputError(f"{out} appeared while merging; it is left as it is: choose another "
+                         "--out") from None
     return load_database(out)
+
+
+#: Header entries that identify the run a database's samples come from: two databases that
+#: share them hold the same samples (sample i depends only on the seed and i).
+_RUN_KEYS = ("kind", "worker", "config_class", "config", "seed", "model_hash")
+
+
+def _runs(header: dict) -> list[str]:
+    """The runs a database's samples come from: its own, or a merge's sources', recursively."""
+    parts = (header.get("provenance") or {}).get("parts") if header.get("kind") == "merged" else None
+    if isinstance(parts, list):
+        return [r for part in parts if isinstance(part, dict)
+                for r in _runs(part.get("header") or {})]
+    return [canonical_json({k: header.get(k) for k in _RUN_KEYS}).decode()]
+
+
+def _refuse_overlap(paths: list, dbs: list[Database]) -> None:
+    """Sources that hold the same samples (the same file, the same run twice, or a merge that
+    has one of them) would count each sample twice in every regression: refused."""
+    seen: dict[str, Any] = {}
+    for p, db in zip(paths, dbs, strict=True):
+        if db.header.get("seed") is None and db.header.get("kind") != "merged":
+            continue  # a database saved whole (bundled, derived): no run to compare
+        for run in set(_runs(db.header)):
+            if run in seen:
+                raise InputError(f"cannot merge {p} with {seen[run]}: both hold the samples of "
+                                 "the same run (same seed and parameters); merge databases of "
+                                 "other seeds")
+            seen[run] = p

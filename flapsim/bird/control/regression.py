@@ -249,7 +249,9 @@ class Regressor:
             return self.k
         d2, _ = self.neighbours(x, self.k_dense, s)
         lo, hi = self.dense_radii
-        t = min(1.0, max(0.0, (float(np.sqrt(d2[-1])) - lo) / (hi - lo)))
+        r = float(np.sqrt(d2[-1]))
+        # hi == lo == 0 where most samples repeat (duplicates): the step at lo stands in
+        t = min(1.0, max(0.0, (r - lo) / (hi - lo))) if hi > lo else float(r > lo)
         return int(round(np.exp(np.log(self.k_dense) + t * (np.log(self.k) - np.log(self.k_dense)))))
 
     def _lwlr(self, x: np.ndarray, s: np.ndarray | None = None) -> np.ndarray:

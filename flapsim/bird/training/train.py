@@ -38,17 +38,23 @@ from flapsim import __version__
 from flapsim.bird.control.database import (
     DEFAULT_KIND,
     DatabaseWriter,
+    FinishedDatabase,
     canonical_json,
     fields_spec,
     finalize_database,
     load_database,
 )
+from flapsim.core import interrupts
 from flapsim.core.errors import DataFileError, InputError
 from flapsim.core.parallel import BACKENDS, ChunkExecutor
 
 log = logging.getLogger(__name__)
 
 DEFAULT_CHUNK_SIZE = 16
+
+#: journal header entry: the samples the run that started it asked for (a resume that asks
+#: for fewer would drop what the journal holds); not kept in the finished database
+ASKED = "samples_asked"
 
 #: header entries a resumed journal must share with the run that resumes it
 _SAME_RUN = ("kind", "worker", "config_class", "config", "seed", "flapsim_version")
@@ -109,13 +115,15 @@ def _check_same_run(old: dict, new: dict, out: Path) -> None:
 
 @contextlib.contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM raises KeyboardInterrupt (so the pool is stopped and the journal closed)."""
+    """SIGTERM raises :class:`~flapsim.core.interrupts.Terminated` (so the pool is stopped and
+    the journal closed), as the command line's own handler does: not KeyboardInterrupt,
+    which made ``flapsim train`` say "interrupted" and exit 130 where its help says 143."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+        interrupts.signalled(interrupts.Terminated)
 
     old = signal.signal(signal.SIGTERM, handler)
     try:
@@ -160,18 +168,12 @@ def _summary(db: Any, out: Path, *, wall: float, new: int, before: int, startup:
     }
 
 
-def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, workers: int = 1,
-          backend: str = "local", address: str | None = None, chunk_size: int | None = None,
-          progress: bool = True, kind: str = DEFAULT_KIND, float32: bool = False) -> dict:
-    """Create or resume the database ``out`` until it holds the first ``n_samples``
-    accepted samples of ``worker_cls(config)``, then finalize it. Returns a summary:
-    samples, examined, rejected (by reason), wall_s, samples_per_s, workers, backend, ...
-
-    ``chunk_size``: samples per chunk (default: the journal's, else
-    :data:`DEFAULT_CHUNK_SIZE`). ``progress``: a tqdm bar on stderr. ``float32``: the
-    finished file stores its samples in single precision (half the size).
-    """
-    t0 = time.perf_counter()
+def check_out(config: Any, out: str | Path, n_samples: int, worker_cls: type, workers: int = 1,
+              backend: str = "local", address: str | None = None, chunk_size: int | None = None,
+              kind: str = DEFAULT_KIND) -> tuple[Any, int]:
+    """Every check :func:`train` makes of its arguments and of the file at ``out`` before any
+    work (a caller with work of its own to do first, like phase 2's discovery, calls it
+    first too): ``(the database or journal there or None, the chunk size)``."""
     out = Path(out)
     _validate(n_samples, workers, backend, address, chunk_size, out)
     n_samples = int(n_samples)
@@ -191,30 +193,69 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
                 raise InputError(f"{out} is a finished database of {existing.n} samples; rerun with "
                                  f"--samples {existing.n}, or choose another --out for "
                                  f"{n_samples}")
-            return _summary(existing, out, wall=time.perf_counter() - t0, new=0,
-                            before=existing.n, startup=0.0, workers=workers, backend=backend,
-                            address=address, already=True)
+            return existing, int(cs or DEFAULT_CHUNK_SIZE)
         if chunk_size is not None and cs != chunk_size:
             raise InputError(f"{out} was started with --chunk-size {cs}; rerun with --chunk-size "
                              f"{cs} to resume it, or choose another --out")
         chunk_size = int(cs)
     chunk_size = int(chunk_size or DEFAULT_CHUNK_SIZE)
-
-    done: dict[int, tuple[int, int]] = {}  # chunk number -> (accepted, examined)
     if existing is not None:
-        for start, stop, acc in existing.chunks:
+        for start, stop, _ in existing.chunks:
             if start % chunk_size or stop - start != chunk_size:
                 raise InputError(f"{out} holds chunk {start}..{stop}, not on the --chunk-size "
                                  f"{chunk_size} grid; choose another --out")
+        asked = existing.header.get(ASKED)
+        if isinstance(asked, int) and n_samples < asked:
+            raise InputError(f"{out} is an unfinished run of --samples {asked} ({existing.n} "
+                             f"samples so far): finishing it at {n_samples} would drop the rest; "
+                             f"rerun with --samples {asked} (or more), or choose another --out")
+    return existing, chunk_size
+
+
+def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, workers: int = 1,
+          backend: str = "local", address: str | None = None, chunk_size: int | None = None,
+          progress: bool = True, kind: str = DEFAULT_KIND, float32: bool = False) -> dict:
+    """Create or resume the database ``out`` until it holds the first ``n_samples``
+    accepted samples of ``worker_cls(config)``, then finalize it. Returns a summary:
+    samples, examined, rejected (by reason), wall_s, samples_per_s, workers, backend, ...
+
+    ``chunk_size``: samples per chunk (default: the journal's, else
+    :data:`DEFAULT_CHUNK_SIZE`). ``progress``: a tqdm bar on stderr. ``float32``: the
+    finished file stores its samples in single precision (half the size).
+    """
+    t0 = time.perf_counter()
+    out = Path(out)
+    existing, chunk_size = check_out(config, out, n_samples, worker_cls, workers, backend,
+                                     address, chunk_size, kind)
+    n_samples = int(n_samples)
+    ident = run_header(config, worker_cls, kind)
+    if existing is not None and existing.finalized:
+        return _summary(existing, out, wall=time.perf_counter() - t0, new=0,
+                        before=existing.n, startup=0.0, workers=workers, backend=backend,
+                        address=address, already=True)
+    done: dict[int, tuple[int, int]] = {}  # chunk number -> (accepted, examined)
+    if existing is not None:
+        for start, stop, acc in existing.chunks:
             done[start // chunk_size] = (acc, stop - start)
 
     prefix = _Prefix(done)
     before = min(prefix.total(), n_samples)
     startup = 0.0
     if before < n_samples:
-        startup = _run(config, out, n_samples, worker_cls, workers, backend, address,
-                       chunk_size, progress, ident, existing, done, prefix)
-    db = finalize_database(out, n_samples, float32=float32)
+        try:
+            startup, db = _run(config, out, n_samples, worker_cls, workers, backend, address,
+                               chunk_size, progress, ident, existing, done, prefix, float32)
+        except FinishedDatabase:
+            # another run of this journal finished it while this one started its pool
+            fin = load_database(out)
+            if fin.n != n_samples:
+                raise InputError(f"{out} was finished meanwhile with {fin.n} samples; rerun with "
+                                 f"--samples {fin.n}, or choose another --out") from None
+            return _summary(fin, out, wall=time.perf_counter() - t0, new=0, before=before,
+                            startup=0.0, workers=workers, backend=backend, address=address,
+                            already=True)
+    else:
+        db = finalize_database(out, n_samples, float32=float32)
     summary = _summary(db, out, wall=time.perf_counter() - t0, new=max(0, db.n - before),
                        before=before, startup=startup, workers=workers, backend=backend,
                        address=address, already=False)
@@ -222,9 +263,28 @@ def train(config: Any, out: str | Path, n_samples: int, worker_cls: type, worker
     return summary
 
 
+def _check_journal(old: dict, header: dict, out: Path) -> None:
+    """Refuse to resume a journal of another run (identity, provenance, chunk size)."""
+    _check_same_run(old, header, out)
+    if canonical_json(old.get("provenance")) != canonical_json(header["provenance"]):
+        what = (f"model {old.get('model_hash')}, now {header.get('model_hash')}"
+                if old.get("model_hash") != header.get("model_hash")
+                else "provenance (reference data)")
+        raise InputError(f"{out} was started with another {what}; choose another --out")
+    if old.get("chunk_size") != header["chunk_size"]:
+        raise InputError(f"{out} was started with --chunk-size {old.get('chunk_size')}; rerun "
+                         f"with --chunk-size {old.get('chunk_size')} to resume it, or choose "
+                         "another --out")
+
+
 def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int, backend: str,
          address: str | None, chunk_size: int, progress: bool, ident: dict, existing: Any,
-         done: dict[int, tuple[int, int]], prefix: _Prefix) -> float:
+         done: dict[int, tuple[int, int]], prefix: _Prefix, float32: bool) -> tuple[float, Any]:
+    """Run the pool until the prefix holds ``n_samples``; finalize under the journal's lock.
+
+    What the file holds is read again once its lock is taken (:meth:`DatabaseWriter.resume`):
+    another run of the same journal may have added chunks since ``done`` was read (while this
+    one started its pool), and they are neither run nor written again."""
 
     writer: DatabaseWriter | None = None
     buffered: list[Any] = []
@@ -237,16 +297,38 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
         prov = ex.header()
         startup = time.perf_counter() - t0  # start the pool and build one worker
         header = {**ident, "model_hash": prov.get("model_hash"), "provenance": prov,
-                  "chunk_size": chunk_size}
+                  "chunk_size": chunk_size, ASKED: n_samples}
+        accepted = examined = 0
+
+        def attach(new: bool, fields: list | None = None) -> DatabaseWriter:
+            """Take the journal's lock (creating the file, or resuming it, also when another
+            run created it meanwhile) and learn every chunk it holds."""
+            nonlocal accepted, examined
+            w = None
+            if new:
+                try:
+                    w = DatabaseWriter.create(out, {**header, "fields": fields})
+                except InputError:
+                    if not out.exists():
+                        raise
+            if w is None:
+                w, db = DatabaseWriter.resume(out)
+            stack.callback(w.close)
+            _check_journal(w.header, header, out)
+            for start, stop in sorted(w.chunks):
+                if start % chunk_size or stop - start != chunk_size:
+                    raise InputError(f"{out} holds chunk {start}..{stop}, not on the --chunk-size "
+                                     f"{chunk_size} grid; choose another --out")
+            if not new or w.chunks:
+                db = load_database(out) if new else db
+                for start, _, acc in db.chunks:
+                    done[start // chunk_size] = (acc, chunk_size)
+            accepted = sum(a for a, _ in done.values())
+            examined = sum(e for _, e in done.values())
+            return w
+
         if existing is not None:
-            old = existing.header
-            if canonical_json(old.get("provenance")) != canonical_json(prov):
-                what = (f"model {old.get('model_hash')}, now {prov.get('model_hash')}"
-                        if old.get("model_hash") != prov.get("model_hash")
-                        else "provenance (reference data)")
-                raise InputError(f"{out} was started with another {what}; choose another --out")
-            writer, _ = DatabaseWriter.resume(out)
-            stack.callback(writer.close)
+            writer = attach(False)
         accepted = sum(a for a, _ in done.values())
         examined = sum(e for _, e in done.values())
         bar = stack.enter_context(tqdm(total=n_samples, initial=min(prefix.total(), n_samples),
@@ -278,12 +360,12 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
                     done[k] = (0, chunk_size)
                     examined += chunk_size
                     continue
-                writer = DatabaseWriter.create(out, {**header, "fields": fields_spec(res.arrays)})
-                stack.callback(writer.close)
+                writer = attach(True, fields_spec(res.arrays))
                 for b in buffered:
                     writer.append(b)
                 buffered.clear()
-            writer.append(res)
+            if not writer.append(res):  # another run of this journal wrote it meanwhile
+                continue
             m = int(len(res.index))
             done[k] = (m, chunk_size)
             accepted += m
@@ -293,4 +375,5 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
                 bar.update(total - shown)
                 shown = total
             bar.set_postfix(rejected=examined - accepted, refresh=False)
-        return startup
+        db = finalize_database(out, n_samples, float32=float32, writer=writer)
+        return startup, db

@@ -19,7 +19,7 @@ from flapsim.cli.options import (
 )
 from flapsim.core.errors import InputError
 from flapsim.core.parallel import usable_cores
-from flapsim.core.validate import add_input_arg, require_gl
+from flapsim.core.validate import add_input_arg, address_problem, require_gl
 from flapsim.scenarios import runner
 from flapsim.scenarios.journal import journal_path
 from flapsim.scenarios.runner import TABLE1_K_PERCENT, TABLE1_SCENARIO, TABLE1_SIZES
@@ -135,7 +135,49 @@ def _names(args: argparse.Namespace) -> list[str]:
     return out
 
 
+#: Options only --table1 reads (dest, flag, default).
+_TABLE1_ONLY = (("sizes", "--sizes", None), ("table1_seed", "--table1-seed", None),
+                ("cache", "--cache", "table1_dbs"))
+
+
+#: Options that mean nothing to --list (dest, flag, default).
+_NOT_FOR_LIST = (("scenario", "--scenario", None), ("path", "--path", None),
+                 ("table1", "--table1", False), ("db", "--db", None), ("plots", "--plots", None),
+                 ("video", "--video", None))
+
+
+def check_conflicts(args: argparse.Namespace) -> None:
+    """Options that the run asked for would ignore are refused before any work (--table1
+    trains for hours: it must not start on a command line it does not follow)."""
+    if args.list:
+        given = [flag for dest, flag, default in _NOT_FOR_LIST
+                 if getattr(args, dest, default) != default]
+        if given:
+            raise InputError(f"--list only lists the scenarios; drop {', '.join(given)}")
+        return
+    if args.table1:
+        if args.path:
+            raise InputError("--table1 flies one of the suite's scenarios with its own databases; "
+                             "drop --path (or --table1)")
+        if args.db:
+            raise InputError("--table1 trains and flies its own databases; drop --db")
+        if args.starts != 1:
+            raise InputError("--table1 flies one start per database; drop --starts")
+        return
+    given = [flag for dest, flag, default in _TABLE1_ONLY if getattr(args, dest, default) != default]
+    if given:
+        raise InputError(f"{', '.join(given)} {'is' if len(given) == 1 else 'are'} for --table1; "
+                         "add --table1, or drop them")
+
+
 def run(args: argparse.Namespace) -> dict:
+    check_conflicts(args)
+    if args.address is not None:
+        if args.backend != "ray":
+            raise InputError("--address is only for --backend ray")
+        problem = address_problem(args.address)
+        if problem:
+            raise InputError(problem)
     if args.list:
         return _list()
     if args.workers is not None and not (1 <= args.workers <= 4096):
@@ -165,7 +207,7 @@ def run(args: argparse.Namespace) -> dict:
     for d in (plots, video):
         if d:
             Path(d).mkdir(exist_ok=True)
-    journal = runner.open_journal(args.json, runs)
+    journal = args._journal = runner.open_journal(args.json, runs)
     results = runner.execute(runs, args.workers, args.backend, args.address, journal, say=print)
     for r, (_, o) in zip(results, runs, strict=True):
         if args.starts > 1:
@@ -198,9 +240,12 @@ def print_spread(results: list[dict], n: int, jitter: float, seed: int) -> dict:
 
 
 def finished(args: argparse.Namespace) -> None:
-    """Called once ``--json PATH`` is written: the finished runs' journal goes."""
-    if args.json and args.json != "-" and not args.list:
-        journal_path(args.json).unlink(missing_ok=True)
+    """Called once ``--json PATH`` is written: the finished runs' journal goes, unless it
+    holds runs of other evals (never deleted unasked)."""
+    journal = getattr(args, "_journal", None)
+    if journal is not None and journal.finish():
+        print(f"{journal.path} is kept: it holds {len(journal.kept)} finished runs of another "
+              "eval (the same command as that eval resumes from them)")
 
 
 def resume_hint(args: argparse.Namespace) -> str:
@@ -341,7 +386,7 @@ def _table1(args: argparse.Namespace, opts: scenarios.EvalOptions) -> dict:
                                   backend=args.backend, address=args.address, say=print)
     runs, labels = runner.table1_runs(name, opts, dbs, sizes)
     runs = runner.lookahead_runs(runs, args.workers, args.backend)
-    journal = runner.open_journal(args.json, runs)
+    journal = args._journal = runner.open_journal(args.json, runs)
     results = runner.execute(runs, args.workers, args.backend, args.address, journal, say=print)
     print(f"\nTable I on {name} ({opts.method}{', samples and their mirror images' if opts.mirror else ''}; "
           f"databases of sampling seed {seed}): per-wingbeat means")

@@ -33,7 +33,7 @@ from flapsim.cli.options import (
 )
 from flapsim.core.errors import InputError
 from flapsim.core.io import save_npz
-from flapsim.core.validate import add_input_arg, add_output_arg
+from flapsim.core.validate import add_input_arg, add_output_arg, quantity
 
 SEED_HELP = "accepted for uniformity (stored in --out); flight is deterministic, --seed changes nothing"
 HELP = ("fly the dove straight ahead (base controller, or the learned wingbeat controller holding "
@@ -53,14 +53,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "controller over a trained database, holding the start altitude, --speed "
                         "and heading")
     add_controller_arguments(p)
-    p.add_argument("--roll-deg", type=float, default=0.0,
+    p.add_argument("--roll-deg", type=quantity("roll_deg"), default=0.0,
                    help="initial roll error, deg (+ right wing down)")
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
                    help="write a chase-camera video (.mp4 or .gif)")
     add_output_arg(p, "--out", kinds=(".npz",), help="write the trajectory (.npz)")
-    p.add_argument("--speed", type=float, default=7.0, help="initial speed, m/s (default 7)")
-    p.add_argument("--pitch-deg", type=float, default=0.0, help="initial trunk pitch (default 0)")
-    p.add_argument("--tail-bias-deg", type=float, default=17.0,
+    p.add_argument("--speed", type=quantity("speed"), default=7.0, help="initial speed, m/s (default 7)")
+    p.add_argument("--pitch-deg", type=quantity("pitch_deg"), default=0.0,
+                   help="initial trunk pitch (default 0)")
+    p.add_argument("--tail-bias-deg", type=quantity("tail_bias_deg"), default=17.0,
                    help="tail bend added to the reference wingbeat (paper: 17)")
     p.add_argument("--table", default=None,
                    help="feather coefficient table (default dickinson1999_profile; a learned "

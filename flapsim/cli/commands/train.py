@@ -17,9 +17,10 @@ from flapsim.bird.control.database import merge_databases, read_header
 from flapsim.bird.flight.dove_flight import CRUISE
 from flapsim.bird.training.discovery import DiscoveryConfig, DiscoveryWorker
 from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
-from flapsim.bird.training.train import train
+from flapsim.bird.training.train import check_out, train
 from flapsim.core.errors import InputError
 from flapsim.core.io import write_problem
+from flapsim.core.validate import address_problem
 from flapsim.fluid.coefficients import get_table
 
 HELP = ("train the dove's controller database: sample wingbeats in parallel (local processes "
@@ -112,6 +113,9 @@ def _writable_file(path: str, flag: str) -> Path:
     p = Path(path)
     if p.is_dir():
         raise InputError(f"{flag} {path} is a folder; name a file")
+    if p.exists() and not p.is_file():  # a device (/dev/full) is no database
+        raise InputError(f"{flag} {path} is not a regular file (a device, pipe or socket); "
+                         "name a file")
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise InputError(f"{flag} {path}: folder {parent} does not exist (create it first)")
@@ -147,6 +151,9 @@ def validate(args: argparse.Namespace) -> None:
             import ray  # noqa: F401
         except ImportError:
             raise InputError("--backend ray needs Ray: pip install 'flapsim[cluster]'") from None
+        problem = address_problem(args.address) if args.address else None
+        if problem:
+            raise InputError(problem)
     out = _writable_file(args.out, "--out")
     if args.json:
         js = _writable_file(args.json, "--json")
@@ -272,15 +279,20 @@ def run_phase2(args: argparse.Namespace) -> tuple[Any, type]:
     n_disc = args.discovery or 2 * args.samples
     dcfg = DiscoveryConfig(seed=args.seed, db=str(src), method=args.method,
                            alpha_max_deg=args.alpha_max_deg, beta_max_deg=args.beta_max_deg)
+    cfg = SamplingConfig.from_dict({**base, "seed": args.seed,
+                                    "sigma": args.sigma if args.sigma is not None else PHASE2_SIGMA,
+                                    "source": str(disc_out.resolve()),
+                                    "extrapolate": args.extrapolate})
+    # both files are checked before step 1 flies (a minute or more): the final --out too
+    workers = args.workers or os.cpu_count() or 1
+    for c, w, o, n, kind in ((dcfg, DiscoveryWorker, disc_out, n_disc, "dove-discovery"),
+                             (cfg, SampleWorker, Path(args.out), args.samples, "dove-phase2")):
+        check_out(c, o, n, w, workers, args.backend, args.address, args.chunk_size, kind)
     print(f"phase 2, step 1: {n_disc} steering tasks with the controller of {src.name} "
           f"-> {disc_out}")
     step1 = train_from_args(args, dcfg, DiscoveryWorker, kind="dove-discovery", out=disc_out,
                             n_samples=n_disc)
     args._phase2_discovery = step1
-    cfg = SamplingConfig.from_dict({**base, "seed": args.seed,
-                                    "sigma": args.sigma if args.sigma is not None else PHASE2_SIGMA,
-                                    "source": str(disc_out.resolve()),
-                                    "extrapolate": args.extrapolate})
     print(f"phase 2, step 2: {args.samples} samples around the discovered wingbeats -> {args.out}")
     return cfg, SampleWorker
 
@@ -329,6 +341,9 @@ def validate_merge(args: argparse.Namespace) -> None:
     if len(args.merge) < 2:
         raise InputError(f"--merge needs at least two databases, got {len(args.merge)}")
     out = _writable_file(args.out, "--out")
+    if out.exists() and not any(Path(s).resolve() == out.resolve() for s in args.merge):
+        raise InputError(f"--out {args.out} exists; --merge writes a new database: choose "
+                         "another --out, or delete it first")
     for src in args.merge:
         p = Path(src)
         if p.resolve() == out.resolve():
@@ -366,3 +381,8 @@ def run(args: argparse.Namespace) -> dict:
     if args.phase == 2:
         result["discovery"] = args._phase2_discovery
     return result
+
+
+def resume_hint(args: argparse.Namespace) -> str:
+    """What an interrupted (Ctrl-C) or terminated (SIGTERM) training tells the user."""
+    return "" if getattr(args, "merge", None) else "; run the same command again to resume"

@@ -45,8 +45,34 @@ def test_merge_keeps_every_sample_and_both_provenances(tmp_path):
     assert all(len(p["sha256"]) == 64 for p in prov["parts"])
     assert again.rejected == {"left_range": 2 + 3}
     # a merged database merges again (its own part/source_index fields are not carried)
-    third = merge_databases([tmp_path / "m.db", tmp_path / "a.db"], tmp_path / "m2.db")
-    assert third.n == 19 and sorted(third.arrays) == ["S", "dP", "dS", "part", "source_index"]
+    _db(tmp_path / "c.db", 4, 3)
+    third = merge_databases([tmp_path / "m.db", tmp_path / "c.db"], tmp_path / "m2.db")
+    assert third.n == 16 and sorted(third.arrays) == ["S", "dP", "dS", "part", "source_index"]
+
+
+def test_merge_refuses_sources_that_hold_the_same_samples_and_an_existing_out(tmp_path):
+    """Overlapping sources counted each sample twice (and LWLR's density radii fell to 0:
+    ZeroDivisionError in every flight); an existing --out was replaced without a word."""
+    _db(tmp_path / "a.db", 7, 1)
+    _db(tmp_path / "b.db", 5, 2)
+    (tmp_path / "copy.db").write_bytes((tmp_path / "a.db").read_bytes())
+    _db(tmp_path / "longer.db", 9, 1)  # the same run (seed, parameters), more samples
+    merge_databases([tmp_path / "a.db", tmp_path / "b.db"], tmp_path / "m.db")
+    for sources in (["a.db", "copy.db"], ["a.db", "longer.db"], ["m.db", "a.db"],
+                    ["b.db", "m.db"]):
+        with pytest.raises(InputError, match="same run") as e:
+            merge_databases([tmp_path / s for s in sources], tmp_path / "x.db")
+        assert "\n" not in str(e.value)
+    finished = (tmp_path / "m.db").read_bytes()
+    _db(tmp_path / "c.db", 4, 3)
+    with pytest.raises(InputError, match="exists") as e:
+        merge_databases([tmp_path / "a.db", tmp_path / "c.db"], tmp_path / "m.db")
+    assert (tmp_path / "m.db").read_bytes() == finished
+    assert main(["train", "--merge", str(tmp_path / "a.db"), str(tmp_path / "c.db"),
+                 "--out", str(tmp_path / "m.db")]) == 2
+    assert (tmp_path / "m.db").read_bytes() == finished
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "a.db", "b.db", "c.db", "copy.db", "longer.db", "m.db"]
 
 
 @pytest.mark.parametrize("kw, fragment", [
