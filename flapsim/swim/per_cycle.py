@@ -235,14 +235,33 @@ def load_table(stroke: Stroke, path: str | Path | None = None, check: bool = Tru
 
 
 # ------------------------------------------------------------------ the layer
+#: speeds that may be asked [m/s] (a slow recreational swim .. a fast one)
+SPEED_RANGE = (0.5, 1.6)
+#: stroke rates the speed control may set, as fractions of the stroke's own
+RATE_RANGE = (0.35, 1.3)
+#: exponent of the per-cycle rate correction (below 1: a cycle's speed lags its rate)
+SPEED_GAIN = 0.7
+
+
 class CycleLayer:
     """Call :meth:`update` at the control rate (it acts once per cycle)."""
 
     def __init__(self, basic: BasicStrokeLayer, table: CycleTable, target: object | None = None,
-                 feedback: object | None = None, gain: float = 1.0) -> None:
+                 feedback: object | None = None, gain: float = 1.0,
+                 speed: float | None = None) -> None:
         st = basic.stroke
         if not st.cycle:
             raise InputError(f"stroke {st.name!r} has no [cycle.*] sequences")
+        if speed is not None and not (SPEED_RANGE[0] <= speed <= SPEED_RANGE[1]):
+            raise InputError(f"the speed asked must be {SPEED_RANGE[0]:g}..{SPEED_RANGE[1]:g} "
+                             f"m/s, got {speed:g}")
+        if speed is not None and st.posture != "prone":
+            raise InputError(f"stroke {st.name!r} swims on the spot: a speed is asked of the "
+                             "prone strokes (crawl, breaststroke)")
+        #: the speed asked [m/s] (None: the stroke's own rate); held by the stroke rate
+        self.speed = speed
+        self.rate0 = float(basic.rate_hz)
+        self._last: tuple[float, np.ndarray] | None = None
         self.basic = basic
         self.table = table
         self.target = target
@@ -289,6 +308,8 @@ class CycleLayer:
         sw = self.basic.swimmer
         heading, elev = self.desired(data)
         speed = float(np.linalg.norm(data.subtree_linvel[self.root]))
+        if self.speed is not None:
+            self._hold_speed(data)
         off, level = self.table.baseline(speed)
         att = attitude(data, self.trunk, self.forward_axis, self.head) - off
         errors = {"yaw": 0.0 if heading is None else wrap_angle(heading - att[0]),
@@ -315,6 +336,24 @@ class CycleLayer:
                              **{f"{k}_error_deg": math.degrees(v) for k, v in errors.items()},
                              **w})
         return w
+
+    def _hold_speed(self, data: mujoco.MjData) -> None:
+        """Set the next cycle's stroke rate for the speed asked: at the first cycle from
+        the stroke's full speed (the table's fastest), then from the speed of the cycle
+        just swum (horizontal, centre of mass): distance per stroke hardly changes with the
+        rate, so speed ~ rate, corrected by (asked / swum)^SPEED_GAIN each cycle."""
+        t = float(data.time)
+        xy = data.subtree_com[self.root][:2].copy()
+        b = self.basic
+        if self._last is None:
+            full = float(np.max(self.table.speeds))
+            rate = self.rate0 * self.speed / max(full, 0.1)
+        else:
+            t0, xy0 = self._last
+            swum = float(np.linalg.norm(xy - xy0)) / max(t - t0, 1e-6)
+            rate = b.rate_hz * (self.speed / max(swum, 0.05)) ** SPEED_GAIN
+        b.rate_hz = float(np.clip(rate, RATE_RANGE[0] * self.rate0, RATE_RANGE[1] * self.rate0))
+        self._last = (t, xy)
 
     def summary(self) -> dict:
         """Per sequence: mean weight and the fraction of cycles it was used."""

@@ -16,7 +16,8 @@ from tqdm import tqdm
 
 from flapsim.core.errors import InputError
 from flapsim.fluid.flow import FlowField
-from flapsim.render.video import new_renderer
+from flapsim.render.scene import Marker, add_items
+from flapsim.render.video import Camera, CameraRig, new_renderer
 from flapsim.swim.continuous import RULES, HandRules
 from flapsim.swim.goals import Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
@@ -314,6 +315,7 @@ def swim(
     rules: tuple[str, ...] | None = None,
     cycle_table: object | None = None,
     hand_params: object | None = None,
+    speed: float | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
@@ -325,7 +327,9 @@ def swim(
     also the continuous layer: the hand rules ``rules`` (default both, see
     :mod:`flapsim.swim.continuous`) and the stroke's feedback rules (its
     ``[perturb.*]`` sections: treading water's balance) at 50 Hz. ``feedback=False``
-    (older API) means "basic". ``cycle_table``: a :class:`flapsim.swim.per_cycle.CycleTable`
+    (older API) means "basic". ``speed`` [m/s]: the per-cycle layer sets each cycle's stroke
+    rate to hold it (:class:`flapsim.swim.per_cycle.CycleLayer`). ``cycle_table``: a
+    :class:`flapsim.swim.per_cycle.CycleTable`
     instead of the stroke's own. ``hand_params``: a
     :class:`flapsim.swim.continuous.HandRuleParams` instead of the defaults.
     ``target``: a heading, a point (with a depth: 3D), waypoints, a timed trajectory or
@@ -350,6 +354,9 @@ def swim(
     if target is not None and layers != "basic" and not steering:
         raise InputError(f"stroke {st.name!r} cannot steer: it has no [cycle.yaw_*] sequences "
                          "(crawl, breaststroke and treading have)")
+    if speed is not None and layers == "basic":
+        raise InputError("a speed asked is held by the per-cycle layer: use layers 'cycle' or "
+                         "'all', not 'basic'")
     fb = FeedbackLayer(layer, target=target) if st.perturbations else None
     cyc = None
     if st.cycle:
@@ -357,9 +364,9 @@ def swim(
             table = cycle_table if cycle_table is not None else \
                 load_table(st, layers="all" if layers == "all" else "cycle",
                            body_shape=sw.params.body_shape)
-            cyc = CycleLayer(layer, table, target=target, feedback=fb)
+            cyc = CycleLayer(layer, table, target=target, feedback=fb, speed=speed)
         except InputError:
-            if target is not None and layers != "basic":
+            if (target is not None or speed is not None) and layers != "basic":
                 raise
             log.warning("stroke %s has no per-cycle calibration table: the per-cycle layer is "
                         "off", st.name)
@@ -391,8 +398,9 @@ def swim(
         renderer = new_renderer(m, *video_size)
         frame_every = max(1, int(round(1.0 / (video_fps * dt))))
         cam = mujoco.MjvCamera()
-        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        cam.azimuth, cam.elevation, cam.distance = 120.0, -18.0, 3.2
+        # the shared chase camera: behind the swimmer along its heading, the target ahead
+        rig = CameraRig(m, Camera(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, pelvis), "chase",
+                                  distance=3.2, elevation_deg=-18.0, lead_m=0.8, tau_s=0.6))
     bar = None
     if progress:
         bar = tqdm(total=nsteps, unit=" sim s", unit_scale=dt, desc=st.name, leave=False)
@@ -416,8 +424,10 @@ def swim(
                         pos = getattr(target, "position", None)
                         txyz.append(pos(float(d.time)) if pos is not None else np.full(3, np.nan))
                 if renderer is not None and i % frame_every == 0:
-                    cam.lookat[:] = d.subtree_com[pelvis]
+                    rig.update(cam, d, frame_every * dt if i else 0.0)
                     renderer.update_scene(d, camera=cam)
+                    if txyz and np.all(np.isfinite(txyz[-1])):  # the target, in view ahead
+                        add_items(renderer.scene, [Marker(txyz[-1])])
                     if on_frame is not None:
                         on_frame(renderer.render())
                     else:

@@ -27,7 +27,8 @@ def test_swim_command_writes_json_and_track(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--target", "1,2,3"], "two finite"),
+    (["--target", "1,2,3,4"], "two or three finite"),
+    (["--target", "1,2,3"], "depth Z must be -50..0.5 m"),
     (["--path", "/no/such/path.csv"], "does not exist"),
     (["--out", "track.txt"], ".npz"),
     (["--no-feedback", "--layers", "cycle"], "contradicts"),

@@ -215,3 +215,20 @@ def test_calibration_refuses_to_assemble_without_every_cycle(tmp_path, monkeypat
     with pytest.raises(WorkerError, match="no result came back") as e:
         cyc.calibrate("crawl", out, workers=1, snapshot_cycles=(0,), weights=(1.0,))
     assert "\n" not in str(e.value) and not out.exists()
+
+
+def test_the_per_cycle_layer_holds_a_speed_asked():
+    from flapsim.swim.per_cycle import RATE_RANGE
+
+    # the crawl swims 1.02 m/s at its own 0.8 Hz; asked 0.7 m/s it strokes slower. The
+    # settled speed (after two cycles) within 0.1 m/s: a cycle's speed lags its rate by
+    # about one cycle, and the rate is corrected once per cycle
+    s = swim("crawl", 20.0, speed=0.7).summary()
+    assert abs(s["speed_m_s"] - 0.7) < 0.1
+    assert RATE_RANGE[0] * 0.8 <= s["stroke_rate_hz"] < 0.7
+    with pytest.raises(InputError, match="per-cycle layer"):
+        swim("crawl", 1.0, speed=0.7, layers="basic")
+    with pytest.raises(InputError, match="0.5..1.6"):
+        swim("crawl", 1.0, speed=3.0)
+    with pytest.raises(InputError, match="swims on the spot"):
+        swim("treading", 1.0, speed=0.7)

@@ -81,6 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="simulated time [s] (default 20)")
     p.add_argument("--rate", type=quantity("rate"), default=None,
                    help="stroke rate [cycles/s] (default: the stroke file's)")
+    p.add_argument("--speed", type=float, default=None, metavar="M_S",
+                   help="hold this speed [m/s, 0.5..1.6] by the stroke rate, set once per cycle "
+                        "by the per-cycle layer (crawl, breaststroke)")
     p.add_argument("--density", type=quantity("density"), default=None,
                    help="water density [kg/m^3] (default 1025, the paper's 91 kg buoyancy)")
     p.add_argument("--lungs", type=quantity("lungs"), default=None,
@@ -328,7 +331,7 @@ def run(args: argparse.Namespace) -> dict:
                           progress=viewer is None, layers=layers, target=target,
                           swimmer=swimmer, control_hook=viewer if viewer is not None else dive,
                           on_frame=on_frame,
-                          cycle_table=cycle_table)
+                          cycle_table=cycle_table, speed=args.speed)
         finally:
             if viewer is not None:
                 viewer.close()
