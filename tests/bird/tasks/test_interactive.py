@@ -32,6 +32,7 @@ def test_view_with_modal_feathers_needs_a_modal_database(monkeypatch, capsys):
 
     monkeypatch.setenv("DISPLAY", ":0")
     monkeypatch.setenv("MUJOCO_GL", "glfw")
+    monkeypatch.setattr("flapsim.render.viewer.display_problem", lambda: None)  # a display
     assert cli.main(["view", "--feathers", "modal", "--seconds", "1", "--db",
                      str(bundled_database_path())]) == 2
     err = capsys.readouterr().err
