@@ -52,7 +52,7 @@ def _vec(text: str, what: str, n: int) -> tuple[float, ...]:
 def add_target_arguments(p: argparse.ArgumentParser) -> None:
     """What to steer for (shared with ``flapsim sweep``)."""
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--target", metavar="X,Y[,Z]",
+    g.add_argument("--target", metavar="X,Y[,Z]", type=_target_arg,
                    help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke. "
                         "A Z below the surface (< 0) is reached by a surface dive (breathe "
                         "out, pike, swim on under water, breathe in there and come up)")
@@ -174,6 +174,14 @@ def _target_xyz(text) -> tuple[float, ...]:
     if len(v) == 3 and not -50.0 <= v[2] <= 0.5:
         raise InputError(f"--target depth Z must be -50..0.5 m (0: the surface), got {v[2]:g}")
     return v
+
+
+def _target_arg(text: str) -> tuple[float, ...]:
+    """argparse's type for --target: the numbers, or its one-line usage error."""
+    try:
+        return _target_xyz(text)
+    except InputError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def target_from_args(args: argparse.Namespace):

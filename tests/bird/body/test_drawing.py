@@ -179,7 +179,7 @@ class _Handle:
 
     def __init__(self, model, data, frames: list):
         self.m, self.d, self.frames = model, data, frames
-        self.cam = types.SimpleNamespace()
+        self.cam = mujoco.MjvCamera()  # the viewer's camera: the chase camera moves it
         self.perturb = mujoco.MjvPerturb()  # the mouse's selection (flapsim.render.viewer reads it)
         self.user_scn = types.SimpleNamespace(ngeom=0, maxgeom=0, geoms=[])
 
