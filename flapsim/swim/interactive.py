@@ -103,9 +103,12 @@ class SwimViewer:
         # x and y only: a point on the swimmer or on the floor steers as the spot above it
         self.target.x, self.target.y = round(float(point[0]), 2), round(float(point[1]), 2)
         com = swimmer.com()
+        cam = self.view.handle.cam
         self.events.append({"t": t, "click": [float(point[0]), float(point[1]), float(point[2])],
                             "target": [self.target.x, self.target.y],
-                            "swimmer": [float(com[0]), float(com[1])]})
+                            "swimmer": [float(com[0]), float(com[1])],
+                            "camera": {"lookat": [float(v) for v in cam.lookat],
+                                       "azimuth_deg": float(cam.azimuth)}})
 
     def _texts(self, swimmer: Swimmer, layer: BasicStrokeLayer) -> tuple[str, str]:
         com = swimmer.com()
