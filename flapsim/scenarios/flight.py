@@ -15,8 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flapsim.bird.body.model import Dove
-from flapsim.bird.control.controller import database_speed
+from flapsim.bird.control.controller import database_dove, database_speed
 from flapsim.bird.control.targets import GRAVITY
 from flapsim.bird.flight.capture import DATA_FILE, load_capture
 from flapsim.bird.flight.limits import turn_radius
@@ -104,7 +103,7 @@ def _outputs(sc: Scenario, opt: EvalOptions, task, r, tag: str = "", mates=()) -
     if opt.video_dir and r.qpos is not None and len(r.qpos):
         out = Path(opt.video_dir) / f"{stem}.mp4"
         path = task.path
-        dove_video(Dove.load(feathers=opt.feathers), r.qpos, out, opt.fps, *opt.size,
+        dove_video(database_dove(opt.db, opt.feathers), r.qpos, out, opt.fps, *opt.size,
                    slowmo=opt.slowmo, camera=opt.camera, min_seconds=0.0,
                    path_points=path.point(np.linspace(0.0, path.length, 600)),
                    forest=task.forest, wingbeat_times=r.times, mates=mates,

@@ -56,7 +56,7 @@ def test_two_path_files_into_one_folder_leave_two_sets(tmp_path, monkeypatch):
     path, r = _straight_glide(4)
     videos = []
     monkeypatch.setattr(scen_flight, "dove_video", lambda dove, q, out, *a, **k: videos.append(out))
-    monkeypatch.setattr(scen_flight.Dove, "load", staticmethod(lambda **k: None))
+    monkeypatch.setattr(scen_flight, "database_dove", lambda *a, **k: None)
     r = dataclasses.replace(r, qpos=np.zeros((3, 7)))
     sc = Scenario("path", "flight", "the user's path", scen_flight.run_path, {"shape": "file"})
     task = type("T", (), {"path": path, "forest": None})()

@@ -410,13 +410,19 @@ def bundled_database_path(feathers: str = "rigid"):
     return Path(__file__).resolve().parent / "data" / names[feathers]
 
 
+def database_config(db_path=None, feathers: str = "rigid") -> dict:
+    """The sampling configuration in a controller database's header (default: the bundled one
+    of the ``feathers`` dove); empty where it has none (a merged database, say)."""
+    return read_header(db_path or bundled_database_path(feathers)).get("config") or {}
+
+
 def database_table(db_path=None, feathers: str = "rigid") -> str:
     """The feather coefficient table a controller database (default: the bundled one of the
     ``feathers`` dove) was sampled with: its sampling configuration's, or the default table
     where it names none (a merged database, say). A learned controller flies with that table
     only."""
 
-    cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
+    cfg = database_config(db_path, feathers)
     return str(cfg.get("table") or FlightConfig.table)
 
 
@@ -425,7 +431,7 @@ def database_speed(db_path=None, feathers: str = "rigid") -> float:
     the bundled one of the ``feathers`` dove): the speed its flights are asked to hold unless
     told otherwise (its samples describe the bird there)."""
 
-    cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
+    cfg = database_config(db_path, feathers)
     return float(cfg.get("cruise_speed") or FlightConfig.speed)
 
 
@@ -433,7 +439,7 @@ def database_dove(db_path=None, feathers: str = "rigid") -> Dove:
     """The dove a controller database (default: the bundled one of ``feathers``) was sampled
     with: with its wings' induced flow where its sampling configuration says so."""
 
-    cfg = read_header(db_path or bundled_database_path(feathers)).get("config") or {}
+    cfg = database_config(db_path, feathers)
     return Dove.load(feathers=feathers, induced=bool(cfg.get("induced", False)))
 
 

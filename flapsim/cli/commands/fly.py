@@ -306,7 +306,7 @@ def _write_task_outputs(args: argparse.Namespace, r, result: dict, width: int, h
     if args.video:
         path_points = extra.get("path_points")
         path = FlightPath(path_points) if path_points is not None else None
-        n = dove_video(Dove.load(feathers=args.feathers), r.qpos, args.video, args.fps, width, height,
+        n = dove_video(database_dove(args.db, args.feathers), r.qpos, args.video, args.fps, width, height,
                        **video_options(args), path_points=None if path is None else
                        path.point(np.linspace(0.0, path.length, 600)), wingbeat_times=r.times,
                        metric=None if path is None else ("distance from path", path.distance))
