@@ -42,6 +42,7 @@ from flapsim.bird.flight.synthetic_capture import (
     kinematic_reference,
 )
 from flapsim.bird.flight.wingbeat import TAIL_BEND, p0, reference_wingbeat, with_tail_bias
+from flapsim.core.io import write_json
 
 #: (Kinematics field, low, high): the cruise ranges searched (degrees unless named)
 KNOBS = (
@@ -105,8 +106,7 @@ def trim_capture(fl: DoveFlight, args: argparse.Namespace) -> int:
           f"{b['power_W']:.2f} W, climb {b['climb_m_s']:+.3f} m/s, speed change "
           f"{b['accel_m_s2']:+.3f} m/s^2")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump({"speed_m_s": args.speed, "tail_bias_deg": bias, "balance": b}, f, indent=1)
+        write_json(args.json, {"speed_m_s": args.speed, "tail_bias_deg": bias, "balance": b})
     return 0
 
 
@@ -205,8 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for k, v in zip(KNOBS, res.x, strict=True):
         print(f"  {k[0]:24s} {v:8.3f}")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(out, f, indent=1, default=float)
+        write_json(args.json, out)
     return 0
 
 

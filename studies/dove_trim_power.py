@@ -16,7 +16,6 @@ the feathers' dissipation at 30-60 deg angle of attack, cost of transport).
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from collections.abc import Sequence
 
@@ -28,6 +27,7 @@ from flapsim.bird.body.params import DOF_NAMES, dof_ranges
 from flapsim.bird.flight.dove_flight import CRUISE, DoveFlight, FlightConfig
 from flapsim.bird.flight.power import power_budget, wingbeat_balance
 from flapsim.bird.flight.wingbeat import p0, project_to_ranges, reference_wingbeat, with_tail_bias
+from flapsim.core.io import write_json
 
 #: (name, DOF on both sides or the tail, "scale" or "offset", low, high); offsets in deg
 KNOBS = (
@@ -119,8 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for k, v in out["knobs"].items():
         print(f"  {k:24s} {v:8.3f}")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(out, f, indent=1, default=float)
+        write_json(args.json, out)
     return 0
 
 
