@@ -11,11 +11,12 @@ on top of the layers (:func:`flapsim.swim.simulate.swim`, ``approach=``):
   (``d``: the horizontal distance to the target), between ``floor_m_s`` and the
   cruise speed. For a fixed target ``v = k d``: the swimmer slows as it closes in.
 * **Treading water at a fixed target**: once the target is within ``tread_within_m``
-  the stroke gives way to treading water (the bundled ``treading`` stroke, its
-  balance rules holding the swimmer upright and over the target: their drift
-  reference is the target, their frame the heading the swimmer arrived with); beyond
-  ``swim_beyond_m`` (hysteresis: a treader's sway does not restart the swim) the
-  stroke takes over again.
+  the stroke's layers rest and the swimmer stands up (``data/manoeuvres/stand_up.toml``:
+  legs down, head up, arms press down) until its trunk is upright, then treads water
+  (the bundled ``treading`` stroke, its balance rules holding it upright and over the
+  target: their drift reference is the target, at ``station_gain_per_m``, their frame
+  the way the treader faces now); beyond ``swim_beyond_m`` (hysteresis: a treader's
+  sway does not restart the swim) the stroke takes over again.
 
 Only the swimmer acts: the speed is the stroke rate, treading is joint targets for the
 PD muscles, every force is still hydrodynamics, buoyancy, gravity and joint torques.
@@ -40,8 +41,6 @@ TREADING = "treading"
 STAND_UP = Path(__file__).resolve().parent / "data" / "manoeuvres" / "stand_up.toml"
 #: treading takes over at this phase of the stand-up (its keys reach treading's pose)
 STAND_UP_END = 0.95
-#: the stand-up starts with the trunk rolled less than this [deg]
-STAND_UP_ROLL_DEG = 8.0
 #: treading takes over from the stand-up as soon as the legs are down (this phase) and
 #: the trunk leans less than STAND_UP_LEAN_DEG from upright: treading's balance rules
 #: saturate at ~10 deg of lean and cannot lift a trunk leaning much more
@@ -160,13 +159,6 @@ class Approach:
         up = float(sw.data.xmat[sw.body["thorax"]][8])
         return phase >= STAND_UP_END or (
             phase >= STAND_UP_LEGS_DOWN and up >= math.cos(math.radians(STAND_UP_LEAN_DEG)))
-
-    @staticmethod
-    def _level(sw: Swimmer) -> bool:
-        """Whether the trunk is rolled less than STAND_UP_ROLL_DEG (a crawler rolls
-        +-30 deg with each arm): the legs drop under the body, not to one side."""
-        left = sw.data.xmat[sw.body["thorax"]].reshape(3, 3)[:, 1]
-        return abs(float(left[2])) < math.sin(math.radians(STAND_UP_ROLL_DEG))
 
     @staticmethod
     def _facing(sw: Swimmer) -> float:

@@ -180,6 +180,9 @@ class SwimResult:
             out["target_reached_s"] = float(self.times[hit[0]]) if len(hit) else None
             sel = self._steady()
             out["target_distance_mean_m"] = float(d[sel].mean())
+            # how well it was held once caught (a moving target) or stayed at (a fixed one)
+            out["target_distance_after_reached_mean_m"] = float(d[hit[0]:].mean()) \
+                if len(hit) else None
         elif isinstance(t, Path):
             # distance to the path and progress along it, in order (as the steering saw
             # it), until the end of the path comes within the look-ahead
@@ -481,6 +484,9 @@ def swim(
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - t_wall
+    if approach is not None and approach.state != "swim":
+        # the layers rest while treading water at the target, not switched off
+        stack.mode = layers
     return SwimResult(st.name, nsteps * dt, layer.rate_hz, layer.cycles, np.asarray(times),
                       np.asarray(com), np.asarray(head), wall, sw.params.water_level,
                       power=np.asarray(power), frames=frames,
