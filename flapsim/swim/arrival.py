@@ -46,6 +46,8 @@ STAND_UP_END = 0.95
 #: saturate at ~10 deg of lean and cannot lift a trunk leaning much more
 STAND_UP_LEGS_DOWN = 0.3
 STAND_UP_LEAN_DEG = 25.0
+#: ... or this long [s] after the stand-up's keys reached treading's pose
+STAND_UP_HOLD_S = 6.0
 
 
 @dataclass(frozen=True)
@@ -121,8 +123,13 @@ class Approach:
         p = self.params
         if self.state == "swim" and dist <= p.tread_within_m:
             self._stand_up(sw, layer, t)
-        elif self.state == "stand" and self._stood(sw, t):
-            self._start_treading(sw, layer, t)
+        elif self.state == "stand":
+            if self._stood(sw, t):
+                self._start_treading(sw, layer, t)
+            elif (t - self._since) / self._stand.period_s >= STAND_UP_END:
+                # in treading's pose but not yet upright: hold it (the clock stopped)
+                # while the hanging legs pull the trunk up
+                layer.rate_hz, layer.phase = 0.0, STAND_UP_END
         elif self.state in ("stand", "tread") and dist >= p.swim_beyond_m:
             self._stop_treading(layer, t)
         if self.state == "tread":
@@ -154,10 +161,11 @@ class Approach:
 
     def _stood(self, sw: Swimmer, t: float) -> bool:
         """Whether the stand-up is done: the trunk upright (within STAND_UP_LEAN_DEG)
-        once the legs are down, or the manoeuvre's end."""
+        once the legs are down, or STAND_UP_HOLD_S after the manoeuvre's end."""
         phase = (t - self._since) / self._stand.period_s
         up = float(sw.data.xmat[sw.body["thorax"]][8])
-        return phase >= STAND_UP_END or (
+        held = t - self._since - STAND_UP_END * self._stand.period_s
+        return held >= STAND_UP_HOLD_S or (
             phase >= STAND_UP_LEGS_DOWN and up >= math.cos(math.radians(STAND_UP_LEAN_DEG)))
 
     @staticmethod
