@@ -78,10 +78,6 @@ def add_target_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--heading", type=quantity("angle_deg"), metavar="DEG",
                    help="hold this heading [deg from +x towards +y] (default: hold the start "
                         "heading)")
-    p.add_argument("--no-approach", action="store_true",
-                   help="swim at the stroke's own speed to a target: do not slow down for a "
-                        "fixed one and tread water there, nor match a moving one's speed "
-                        "(prone strokes with the per-cycle layer approach by default)")
     p.add_argument("--lookahead", type=quantity("lookahead"), default=2.0,
                    help="path following: steer at the point this far along the path [m]")
 
@@ -121,6 +117,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    type=vector(("position", "position", "circulation"), 3),
                    help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
     add_target_arguments(p)
+    p.add_argument("--no-approach", action="store_true",
+                   help="swim at the stroke's own speed to a target: do not slow down for a "
+                        "fixed one and tread water there, nor match a moving one's speed "
+                        "(prone strokes with the per-cycle layer approach by default)")
     p.add_argument("--viewer", action="store_true",
                    help="watch and steer in the MuJoCo viewer, in real time: a double-click "
                         "places the target (default 10 m ahead), arrow keys move it 1 m, "
