@@ -21,6 +21,13 @@ def test_fly_cruise_flies_the_cruise_dove(tmp_path, capsys):
     # an option given beside it wins
     assert main(["fly", "--cruise", "--wingbeats", "1", "--speed", "9", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["config"]["speed"] == 9.0
+    # ... the default dove's own values too: given, they are not taken for "not given"
+    assert main(["fly", "--cruise", "--wingbeats", "1", "--speed", "7", "--tail-bias-deg", "17",
+                 "--pitch-deg", "0", "--json", str(out)]) == 0
+    cfg = json.loads(out.read_text())["config"]
+    assert (cfg["speed"], cfg["tail_bias_deg"], cfg["pitch_deg"]) == (7.0, 17.0, 0.0)
+    # left out, the cruise dove starts at its trimmed trunk pitch
+    assert r["config"]["pitch_deg"] == CRUISE.pitch_deg == 18.0
 
 
 def test_fly_cruise_with_the_learned_controller_is_one_line(tmp_path, capsys):
