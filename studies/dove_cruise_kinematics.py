@@ -10,7 +10,8 @@ Each candidate's noise-free cycle becomes a reference wingbeat
 controller flies it (P0 with a tail bias, searched with it: the capture's tail bend stays the
 captured dove's -10 deg) from the cruise start; its cost is the servos'
 mean power plus 30 W per m/s of climb or sink, 6 W per m/s^2 of speed change and 0.05 W per
-degree of pitch drift per wingbeat (a trimmed wingbeat pays nothing extra); a cycle that
+degree of pitch drift per wingbeat (``--trim-weight 20``: 20 W and 0.2 W; a trimmed wingbeat
+pays nothing extra); a cycle that
 comes closer than 14 deg to a joint's range at its capture's extreme conditions costs
 100 W and more, one over Strouhal number 0.4 50 W and more.
 
@@ -61,7 +62,7 @@ from flapsim.core.io import write_json
 
 #: (Kinematics field, low, high): the cruise ranges searched (degrees unless named)
 KNOBS = (
-    ("frequency_hz", 7.0, 9.5),          # 0.84-1.14 of Pennycuick's 8.3 Hz
+    ("frequency_hz", 7.0, 9.5),          # 0.84-1.14 of Pennycuick's 8.3 Hz (--max-hz lowers it)
     ("downstroke_fraction", 0.50, 0.56),
     ("flap_mean_deg", -15.0, 25.0),
     ("flap_amplitude_deg", 28.0, 58.0),  # 56-116 deg of stroke
@@ -96,6 +97,15 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--start", help="a JSON of an earlier search: its kinematics seed the population")
     ap.add_argument("--json", help="write the best kinematics and its budget here")
+    ap.add_argument("--trim-weight", type=float, default=6.0,
+                    help="W per m/s^2 of speed change (and 1/120 of it per deg of pitch drift a "
+                         "wingbeat) added to the power (default 6; at 6 a search with "
+                         "--roll-max-deg took a wingbeat slowing 0.34 m/s^2 for 0.4 W less: 20 "
+                         "trims it)")
+    ap.add_argument("--max-hz", type=float, default=None,
+                    help="the highest wingbeat rate searched (default 9.5 Hz; 8.5 keeps the "
+                         "capture's cycles, 3 %% noise and slower flights included, inside 1.15x "
+                         "Pennycuick's 8.3 Hz)")
     ap.add_argument("--roll-max-deg", type=float, default=None,
                     help="also ride out an 8 N sideways push rolling at most this much over the "
                          "two wingbeats after it (default: not asked)")
@@ -220,7 +230,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if b is None:
             return 1e3
         drift = abs(b["pitch_deg"][-1] - b["pitch_deg"][args.skip - 1]) / (args.wingbeats - args.skip)
-        c = b["power_W"] + 30.0 * abs(b["climb_m_s"]) + 6.0 * abs(b["accel_m_s2"]) + 0.05 * drift
+        w = args.trim_weight
+        c = (b["power_W"] + 30.0 * abs(b["climb_m_s"]) + w * abs(b["accel_m_s2"])
+             + w / 120.0 * drift)
         if args.roll_max_deg is not None:
             roll = push_roll_deg(fl, with_tail_bias(p0(), bias))
             c += 1e3 if roll is None else 0.1 * max(roll - args.roll_max_deg, 0.0)
@@ -234,7 +246,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         values["tail_bias_deg"] += values.get("tail_bend_deg", -10.0) + 10.0
         x0 = np.clip([values[k[0]] for k in KNOBS], [k[1] for k in KNOBS], [k[2] for k in KNOBS])
     t0 = time.perf_counter()
-    res = differential_evolution(cost, [(k[1], k[2]) for k in KNOBS], maxiter=args.maxiter,
+    bounds = [(k[1], k[2]) for k in KNOBS]
+    if args.max_hz is not None:
+        bounds[0] = (bounds[0][0], float(args.max_hz))
+        if x0 is not None:
+            x0[0] = min(x0[0], float(args.max_hz))
+    res = differential_evolution(cost, bounds, maxiter=args.maxiter,
                                  popsize=args.popsize, seed=args.seed, polish=False, tol=1e-4,
                                  x0=x0)
     best, bias = kinematics(res.x, base)

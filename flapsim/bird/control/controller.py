@@ -438,7 +438,7 @@ def database_speed(db_path=None, feathers: str = "rigid") -> float:
 def database_pitch(db_path=None, feathers: str = "rigid") -> float:
     """The trunk pitch a controller database's pre-states were centred at, deg (default: the
     bundled one of ``feathers``): its flights start there, level (0 for the paper's
-    databases; the cruise dove's trimmed trunk starts its wingbeats at 18)."""
+    databases)."""
 
     cfg = database_config(db_path, feathers)
     return float(cfg.get("pitch_centre_deg") or 0.0)

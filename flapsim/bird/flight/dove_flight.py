@@ -78,9 +78,8 @@ class FlightConfig:
 #: The cruise dove (``--cruise``): a bird wing's section, its induced flow
 #: (``Dove.load(induced=True)``) and the cruise capture's reference wingbeat
 #: (``reference_wingbeat("cruise")``), trimmed by a +26 deg tail bias at an 8.5 m/s start
-#: (``studies/dove_cruise_kinematics.py --trim-capture``); it starts at the trunk pitch its
-#: trimmed wingbeats begin at (18 deg: a level start settles there within four wingbeats).
-CRUISE = FlightConfig(table="bird_wing", tail_bias_deg=26.0, speed=8.5, pitch_deg=18.0)
+#: (``studies/dove_cruise_kinematics.py --trim-capture``).
+CRUISE = FlightConfig(table="bird_wing", tail_bias_deg=26.0, speed=8.5)
 
 
 def feather_polygons(dove: Dove) -> PolygonSet:

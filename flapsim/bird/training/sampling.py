@@ -203,7 +203,7 @@ class SamplingConfig(StoredConfig):
     """Pre-state roll drawn within +-this, deg (paper: 45)."""
     pitch_centre_deg: float = 0.0
     """The pre-state pitch range's centre, deg (paper: 0, a level trunk). A dove whose trimmed
-    trunk flies pitched (the cruise dove: ~18 deg at a wingbeat's start) is sampled around that
+    trunk flies pitched (the cruise dove: 18 deg at a wingbeat's start) is sampled around that
     attitude: its cruise velocity is then level, not along the trunk."""
     angvel_deg_s: float = 4.0
     """Pre-state angular velocity within +-this per body axis, deg/s (paper: 4)."""

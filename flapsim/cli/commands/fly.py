@@ -63,7 +63,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="initial speed, m/s (default 7; --cruise: 8.5; --db: the speed its "
                         "samples were drawn around)")
     p.add_argument("--pitch-deg", type=quantity("pitch_deg"), default=None,
-                   help="initial trunk pitch, deg (default 0; --cruise: 18; a learned "
+                   help="initial trunk pitch, deg (default 0; a learned "
                         "controller: the pitch its database's pre-states were centred at)")
     p.add_argument("--tail-bias-deg", type=quantity("tail_bias_deg"), default=None,
                    help="tail bend added to the reference wingbeat (default 17, the paper's; "

@@ -61,7 +61,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: pre-state pitch within +-this (default 45, the paper's)")
     p.add_argument("--pre-pitch-centre-deg", type=float, default=None, metavar="DEG",
                    help="phase 1: the pre-state pitch range's centre, deg, with a level cruise "
-                        "velocity (default 0, the paper's; --cruise: the cruise dove's trim, 18)")
+                        "velocity (default 0, the paper's; the cruise dove's trunk starts its "
+                        "trimmed wingbeats at 18: docs/design/flight.md)")
     p.add_argument("--pre-roll-deg", type=float, default=None,
                    help="phase 1: pre-state roll within +-this (default 45, the paper's)")
     p.add_argument("--pre-velocity", type=float, default=None, metavar="M_S",
@@ -228,8 +229,7 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
             raise InputError("--cruise needs rigid feathers (modal ones do not see the induced "
                              "flow yet): drop --feathers modal")
         kwargs.update(table=CRUISE.table, tail_bias_deg=CRUISE.tail_bias_deg,
-                      cruise_speed=CRUISE.speed, capture_preset="cruise", induced=True,
-                      pitch_centre_deg=CRUISE.pitch_deg)
+                      cruise_speed=CRUISE.speed, capture_preset="cruise", induced=True)
     if args.sigma is not None:
         kwargs["sigma"] = args.sigma
     if getattr(args, "pre_pitch_deg", None) is not None:
