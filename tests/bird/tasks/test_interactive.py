@@ -127,6 +127,10 @@ def test_a_double_click_on_the_ground_turns_the_dove_toward_it(tmp_path, xvfb_di
     out = tmp_path / "v.json"
     app, window, env = _open_dove_viewer(xvfb_display, out)
     box = xvfb_display.geometry(window, env)
+    # the window exists before the viewer's loop has put its chase camera behind the dove: a
+    # click in between is cast through another camera (its heading came back 180 deg on a
+    # machine at load 12); the loop sets the camera every picture, so a second is plenty
+    time.sleep(1.0)
     subprocess.run(["xdotool", "mousemove", "--window", window, str(box[2] // 5), str(box[3] // 2),
                     "click", "--repeat", "2", "--delay", "80", "1"], env=env, check=True, timeout=10)
     # the point it was sent to is drawn: a red sphere of 1 m radius ~40 m away, ~3 deg across
