@@ -57,6 +57,7 @@ import numpy as np
 from flapsim import __version__
 from flapsim.core.errors import DataFileError, InputError, OutputError
 from flapsim.core.io import _jsonable, atomic_path, file_sha256
+from flapsim.core.validate import require_finite
 
 log = logging.getLogger(__name__)
 
@@ -213,6 +214,9 @@ def _decode_payload(payload: bytes, header: dict, where: str) -> tuple[dict, np.
     if n and (index[0] < start or index[-1] >= stop or np.any(np.diff(index) <= 0)):
         raise DataFileError(f"{where}: chunk {start}..{stop} has indices outside it or out of "
                             "order (the file is damaged); delete it and train again")
+    # training keeps only samples whose flights stayed finite: any other is damage
+    require_finite(arrays, f"{where}: chunk {start}..{stop}", fix="the file is damaged or was "
+                   "not written by flapsim train; delete it and train again")
     return {"start": start, "stop": stop, "n": n, "rejected": rejected}, index, arrays
 
 
