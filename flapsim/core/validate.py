@@ -27,6 +27,12 @@ How a command uses it (in its ``add_arguments(parser)``)::
   ``run`` returns ``"exit_status": 1`` when some of its runs failed (the CLI exits with it
   after writing the JSON); see :mod:`flapsim.cli.main`.
 
+Data files: every loader of a file a user passes or flapsim reads (configuration, stroke,
+path, trajectory, capture, gait and label files, databases) hands what it parsed to
+:func:`require_finite`: a NaN or an infinity anywhere in it is a one-line
+:class:`~flapsim.core.errors.DataFileError` naming the file and the entry (an MJCF model's
+compiled arrays are searched by :func:`nonfinite_entry` in :mod:`flapsim.core.loading`).
+
 ``MUJOCO_GL`` (see :func:`gl_problem`): an unknown value, or a backend whose library is
 missing, is noted when the CLI starts (rendering is then disabled so ``import mujoco``
 works and ``flapsim --help`` prints) and becomes a one-line error only when a command
