@@ -237,7 +237,7 @@ def run_controller(args: argparse.Namespace) -> dict:
         ahead_refine = max(ctl.refine, 1)
         ahead = dataclasses.replace(ctl, refine=ahead_refine,
                                     lookahead=make_lookahead(fl, "on", ahead_refine, "simulate"))
-        flown = {}
+        flown, per_wingbeat = {}, {}
         trim = trim_of_base_flight(fl, ctl.P0)
         res = {}
         for name, c in (("learned", ctl), ("learned_lookahead", ahead), ("learned_coarse", coarse),
@@ -249,6 +249,11 @@ def run_controller(args: argparse.Namespace) -> dict:
                 c.reset()  # the same start for every variant: their flights compare to the bit
             f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
             flown[name] = f.positions
+            # whole wingbeats simulated per wingbeat flown: the reference (where simulated:
+            # the look-ahead's on its own core) and every candidate (the flown one among them)
+            per_wingbeat[name] = float(np.mean([
+                s.simulated + (s.reference is not s.end and not s.reference.predicted)
+                for s in f.steps]))
             res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
                          "real_time_factor": f.simulated_s / f.wall_time}
         start_cruise(fl, ctl.P0)
@@ -292,6 +297,10 @@ def run_controller(args: argparse.Namespace) -> dict:
         "real_time_factor_refine": {r: res[f"learned_refine{r}"]["real_time_factor"] for r in (0, 1, 2)},
         "cost_over_base": res["base"]["real_time_factor"] / res["learned"]["real_time_factor"],
         "over_bare_rollout": {k: v["real_time_factor"] / bare for k, v in res.items()},
+        "threads": {"learned": 1, "learned_lookahead": 2},
+        "wingbeats_simulated_per_flown": per_wingbeat,
+        # the most a controller that simulates these one after another on one thread can reach
+        "ceiling_over_bare_rollout": {k: 1.0 / v for k, v in per_wingbeat.items()},
         "regression_ms": query_ms,
         "measurements": res,
     }
@@ -309,9 +318,13 @@ def run_controller(args: argparse.Namespace) -> dict:
     print(f"  refine 0 / 1 / 2 (default {ctl.refine}): {rf[0]:.1f}x / {rf[1]:.1f}x / "
           f"{rf[2]:.1f}x real time")
     print(f"  against a bare rollout of the reference wingbeat ({bare:.1f}x real time): learned "
-          f"{r['learned']:.2f}, --predict coarse {r['learned_coarse']:.2f}, --predict regression "
+          f"{r['learned']:.2f} on one thread, {r['learned_lookahead']:.2f} on two (look-ahead), "
+          f"--predict coarse {r['learned_coarse']:.2f}, --predict regression "
           f"{r['learned_regression']:.2f}, "
           f"base {r['base']:.2f}")
+    w = per_wingbeat["learned"]
+    print(f"  the learned controller simulates {w:.2f} wingbeats per wingbeat flown, each waiting "
+          f"for the one before: at most {1 / w:.2f} of a bare rollout on one thread")
     return out
 
 

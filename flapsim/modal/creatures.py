@@ -115,12 +115,17 @@ def creature_spec(name: str) -> CreatureSpec:
                      "or give an MJCF file with actuated joints")
 
 
-def load_creature(name: str) -> mujoco.MjModel:
-    """Compile a bundled creature model (or a model file)."""
+def creature_file(name: str) -> Path:
+    """The MJCF file of a bundled creature (or the model file ``name``)."""
     if name not in CREATURES and is_model_file(name):
         creature_spec(name)
-        return load_model(Path(name))
-    return load_model(asset_path("creatures", creature_spec(name).filename))
+        return Path(name)
+    return Path(asset_path("creatures", creature_spec(name).filename))
+
+
+def load_creature(name: str) -> mujoco.MjModel:
+    """Compile a bundled creature model (or a model file)."""
+    return load_model(creature_file(name))
 
 
 def extent_length(model: mujoco.MjModel, data: mujoco.MjData) -> float:

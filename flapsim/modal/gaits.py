@@ -169,17 +169,22 @@ def gait(name: str) -> Gait:
     return GAITS[name]
 
 
-def resolve_model(spec: str) -> tuple[mujoco.MjModel, str]:
-    """'dog', 'human', 'human_cart' (bundled) or a path to an MJCF file."""
+def model_file(spec: str) -> Path:
+    """The MJCF file of 'dog', 'human', 'human_cart' (bundled) or of a path to one."""
     if spec in MODELS:
-        return load_model(asset_path("creatures", MODELS[spec])), spec
+        return Path(asset_path("creatures", MODELS[spec]))
     path = Path(spec)
     if not path.exists():
         raise InputError(
             f"--model {spec!r} is neither a bundled creature ({', '.join(MODELS)}) nor an "
             "existing MJCF file"
         )
-    return load_model(path), path.stem
+    return path
+
+
+def resolve_model(spec: str) -> tuple[mujoco.MjModel, str]:
+    """'dog', 'human', 'human_cart' (bundled) or a path to an MJCF file."""
+    return load_model(model_file(spec)), (spec if spec in MODELS else Path(spec).stem)
 
 
 def build_constraints(specs: tuple[str, ...]) -> list[ExtraConstraint]:

@@ -1,7 +1,7 @@
-"""Offscreen videos of modes and creature runs (mujoco.Renderer, imageio for mp4/gif).
-
-MuJoCo needs an offscreen GL backend: ``flapsim/__init__.py`` sets ``MUJOCO_GL=egl``
-when there is no display. Files are written atomically (never half-written).
+"""Videos of modes and creature runs, drawn by flapsim's one renderer
+(:mod:`flapsim.render.video`) under the sky and over the grass of the dove's and swimmer's
+(:mod:`flapsim.render.world`), written as mp4 or a looping gif (imageio), atomically (never
+half-written). MuJoCo needs an offscreen GL backend (``MUJOCO_GL=egl`` without a display).
 """
 
 from __future__ import annotations
@@ -20,11 +20,16 @@ from flapsim.core.errors import InputError, ModelError
 from flapsim.core.io import atomic_video
 from flapsim.core.validate import require_gl
 from flapsim.modal.analysis import ModalAnalysis, integrate_displacement
-from flapsim.render.video import new_renderer
+from flapsim.render.video import Camera, render_frames
+from flapsim.render.world import drawing_model
 
 log = logging.getLogger(__name__)
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
+
+GRID_M = 0.5
+"""Side of the ground's squares under a creature, m: the dove's grass and grid, at a step
+that a creature of 0.3-1.5 m is seen to cover (the dove's 2 m squares pass under it slowly)."""
 
 
 def check_video_path(path: str | os.PathLike) -> Path:
@@ -37,37 +42,34 @@ def check_video_path(path: str | os.PathLike) -> Path:
     return p
 
 
-def _camera(model: mujoco.MjModel, data: mujoco.MjData) -> mujoco.MjvCamera:
-    """A free camera framing the moving bodies (ground planes would inflate the extent)."""
-    bodies = [b for b in range(1, model.nbody)]
-    cam = mujoco.MjvCamera()
-    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-    if bodies:
-        pts = data.xpos[bodies]
-        center = data.subtree_com[0] if model.body_mass.sum() > 0 else pts.mean(axis=0)
-        radius = float(np.max(np.linalg.norm(pts - center, axis=1)))
-        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
-        if geoms:
-            radius += float(np.max(model.geom_rbound[geoms]))
-    else:
-        center, radius = model.stat.center, model.stat.extent
-    cam.lookat[:] = center
-    cam.distance = max(2.8 * radius, 1e-3)
-    cam.azimuth = 90.0  # look along +y: creatures move in the x-z plane
-    cam.elevation = -15.0
-    return cam
+def followed_body(model: mujoco.MjModel) -> str:
+    """The body a creature's camera follows: of the world's children, the heaviest subtree
+    (the creature, not a cart or a prop beside it): its name (:func:`~flapsim.render.world.
+    drawing_model` names every one)."""
+    roots = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
+    if not roots:
+        raise ModelError("the model has no body to film")
+    b = max(roots, key=lambda i: float(model.body_subtreemass[i]))
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or ""
 
 
-def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
-    width = min(width, int(model.vis.global_.offwidth))
-    height = min(height, int(model.vis.global_.offheight))
-    try:
-        return new_renderer(model, height, width)
-    except Exception as exc:  # GL backends raise assorted types
-        raise ModelError(
-            f"cannot open an offscreen renderer ({exc}); set MUJOCO_GL=egl or osmesa "
-            "and install the matching GL library"
-        ) from None
+def camera_for(model: mujoco.MjModel, rest_qpos: np.ndarray) -> Camera:
+    """A side camera on the creature's centre of mass, looking along +y (creatures move in the
+    x-z plane), far enough to frame it at ``rest_qpos`` (2.8 times its radius: moving
+    bodies only, a ground plane would inflate the extent)."""
+    body = followed_body(model)
+    data = mujoco.MjData(model)
+    data.qpos[:] = rest_qpos
+    mujoco.mj_forward(model, data)
+    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    inside = [i for i in range(1, model.nbody) if model.body_rootid[i] == model.body_rootid[b]]
+    pts = data.xpos[inside]
+    radius = float(np.max(np.linalg.norm(pts - data.subtree_com[b], axis=1)))
+    geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] in inside]
+    if geoms:
+        radius += float(np.max(model.geom_rbound[geoms]))
+    return Camera(body, "side", distance=max(2.8 * radius, 0.05), elevation_deg=-15.0,
+                  azimuth_deg=90.0, com=True, lead_m=0.0)
 
 
 def write_frames(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float,
@@ -96,35 +98,29 @@ def render_poses(
     poses: Sequence[np.ndarray],
     path: str | os.PathLike,
     *,
+    source: str | os.PathLike,
     fps: float = 30.0,
     width: int = 480,
     height: int = 360,
-    track: bool = False,
+    progress: bool = True,
 ) -> int:
-    """Render a sequence of poses (nq each) to a video; ``track`` follows the centre of mass."""
+    """Render a sequence of poses (nq each) of ``model`` to a video with flapsim's one
+    renderer (:func:`flapsim.render.video.render_frames`): its sky, grass with a
+    :data:`GRID_M` grid and sun (``source``, the model's MJCF file, compiled for the picture:
+    :func:`flapsim.render.world.drawing_model`), a side camera following the creature's centre of
+    mass (:func:`camera_for`)."""
 
     if len(poses) == 0:
         raise InputError("no frames to render")
+    check_video_path(path)
     require_gl()
-    data = mujoco.MjData(model)
-    data.qpos[:] = poses[0]
-    mujoco.mj_forward(model, data)
-    cam = _camera(model, data)
-    renderer = _renderer(model, width, height)
-
-    def frames() -> Iterable[np.ndarray]:
-        for q in poses:
-            data.qpos[:] = q
-            mujoco.mj_forward(model, data)
-            if track:
-                cam.lookat[:2] = data.subtree_com[0][:2]
-            renderer.update_scene(data, camera=cam)
-            yield renderer.render().copy()
-
+    drawn = drawing_model(source, nq=model.nq, grid_m=GRID_M, width=width, height=height)
+    frames = render_frames(drawn, np.asarray(poses, dtype=float), fps,
+                           camera_for(drawn, poses[0]), width, height)
     try:
-        return write_frames(path, frames(), fps, total=len(poses))
+        return write_frames(path, frames, fps, total=len(poses), progress=progress)
     finally:
-        renderer.close()
+        frames.close()
 
 
 def mode_poses(

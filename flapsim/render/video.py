@@ -23,7 +23,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -83,6 +83,12 @@ class Camera:
     turns and climbs, not the wingbeat's bobbing."""
     orbit_deg_s: float = 30.0
     """``orbit``: how fast the camera circles, deg/s of the recording."""
+    azimuth_deg: float | None = None
+    """A fixed world azimuth, deg (MuJoCo's: 90 looks along +y), instead of turning with the
+    heading: for an animal that moves along one axis, oscillating back and forth."""
+    com: bool = False
+    """Follow the centre of mass of the body and all below it rather than the body's origin
+    (a creature whose root goes round as it rolls: the loop)."""
 
     def __post_init__(self) -> None:
         if self.mode not in CAMERAS:
@@ -112,9 +118,13 @@ class CameraRig:
         self.last: np.ndarray | None = None
         self.t = 0.0
 
+    def followed(self, data: mujoco.MjData) -> np.ndarray:
+        """The point followed, world, m (a copy)."""
+        return (data.subtree_com if self.spec.com else data.xpos)[self.body].copy()
+
     def update(self, cam: mujoco.MjvCamera, data: mujoco.MjData, dt: float) -> None:
         """Place ``cam`` for ``data`` (``dt``: the recording's time since the last frame, s)."""
-        pos = data.xpos[self.body].copy()
+        pos = self.followed(data)
         moved = None if self.last is None else pos[:2] - self.last[:2]
         if moved is not None and np.linalg.norm(moved) > 0.1 * dt:  # moving faster than 0.1 m/s
             h = float(np.arctan2(moved[1], moved[0]))
@@ -134,6 +144,8 @@ class CameraRig:
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
         cam.lookat[:] = (pos[0] + lead * fwd[0], pos[1] + lead * fwd[1], self.height)
         az = np.degrees(self.heading) + self.azimuth_offset
+        if self.spec.azimuth_deg is not None:
+            az = float(self.spec.azimuth_deg)
         if self.spec.mode == "orbit":
             az += self.spec.orbit_deg_s * self.t
         cam.azimuth = float(az)
@@ -176,17 +188,44 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
                  frame_dt: float | None = None,
                  frame_items: Callable[[int], Sequence[Item]] | None = None) -> int:
     """Render ``qpos_frames`` (n, nq) to a video at ``path`` (.mp4, .gif ...); returns frames.
+    The pictures are :func:`render_frames`' (see there for the arguments); they stream to the
+    file (memory stays bounded), with a progress bar (tqdm, on stderr) when ``progress``."""
+    frames = render_frames(model, qpos_frames, fps, camera, width, height, before_frame, items,
+                           trail, overlay, frame_dt, frame_items)
+    n = 0
+    try:
+        with atomic_video(path, fps=fps, macro_block_size=1) as append:
+            for img in tqdm(frames, total=len(qpos_frames), desc=f"rendering {Path(path).name}",
+                            unit="frame", leave=False, disable=not progress):
+                append(img)
+                n += 1
+    finally:
+        frames.close()
+    log.info("wrote %d frames to %s", n, path)
+    return n
+
+
+def render_frames(model: mujoco.MjModel, qpos_frames: np.ndarray, fps: float = 60.0,
+                  camera: Camera | None = None, width: int = 640, height: int = 480,
+                  before_frame=None, items: Sequence[Item] = (), trail: TrailSpec | None = None,
+                  overlay: Callable[[int, mujoco.MjData], str] | None = None,
+                  frame_dt: float | None = None,
+                  frame_items: Callable[[int], Sequence[Item]] | None = None
+                  ) -> Generator[np.ndarray, None, None]:
+    """The RGB pictures (height, width, 3) of ``qpos_frames`` (n, nq), one at a time: the
+    arguments are checked and the renderer opened at once (a one-line error before any file
+    is made), the renderer closed when the generator ends or is closed.
 
     Positions only: each frame runs ``mj_forward`` on a private ``MjData`` (no force
-    providers are registered on it, so nothing is simulated here). Frames stream to the
-    file (memory stays bounded); ``progress`` shows a bar (tqdm, on stderr).
+    providers are registered on it, so nothing is simulated here).
     ``before_frame(data, renderer)``, if given, runs after each frame's ``mj_forward``: e.g. to
     place bent feathers (:class:`flapsim.bird.body.drawing.FeatherDrawing`). ``items`` are
     drawn in every frame (a path, targets, trees: :mod:`flapsim.render.scene`), and
     ``frame_items(i)`` in frame ``i`` only (things that move: flock mates); ``trail``
     draws the camera body's recent positions; ``overlay(i, data)`` gives the text of frame
     ``i``. ``frame_dt``: the recording's time between frames, s (default ``1 / fps``; less in
-    slow motion): the camera's filters and the trail run on it.
+    slow motion): the camera's filters and the trail run on it. The sky, ground and light are
+    the model's own (:func:`flapsim.render.world.drawing_model` gives any MJCF flapsim's).
     """
     frames = np.asarray(qpos_frames, dtype=float)
     if frames.ndim != 2 or frames.shape[1] != model.nq:
@@ -203,42 +242,41 @@ def render_video(model: mujoco.MjModel, qpos_frames: np.ndarray, path: str | os.
     if not (np.isfinite(dt) and dt > 0):
         raise InputError(f"time between frames must be > 0 s, got {frame_dt}")
     require_gl()
-    d = mujoco.MjData(model)
-    cam = mujoco.MjvCamera()
-    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     rig = CameraRig(model, camera) if camera is not None else None
     try:
         renderer = new_renderer(model, height, width)
     except Exception as exc:  # noqa: BLE001 - GL setup errors come in many types
         raise SimulationError(f"offscreen rendering is unavailable ({type(exc).__name__}: {exc}); "
                               "set MUJOCO_GL=egl or osmesa before starting Python") from None
-    n = 0
+    return _frames(model, frames, renderer, rig, dt, before_frame, items, trail, overlay,
+                   frame_items)
+
+
+def _frames(model, frames, renderer, rig, dt, before_frame, items, trail, overlay, frame_items):
+    d = mujoco.MjData(model)
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     keep = max(2, int(round(trail.seconds / dt)) + 1) if trail is not None else 0
     history: list[np.ndarray] = []
     try:
-        with atomic_video(path, fps=fps, macro_block_size=1) as append:
-            for i, q in enumerate(tqdm(frames, desc=f"rendering {Path(path).name}", unit="frame",
-                                       leave=False, disable=not progress)):
-                d.qpos[:] = q
-                mujoco.mj_forward(model, d)
-                if rig is not None:
-                    rig.update(cam, d, dt if i else 0.0)
-                if before_frame is not None:
-                    before_frame(d, renderer)
-                renderer.update_scene(d, cam)
-                extra = list(items) + (list(frame_items(i)) if frame_items is not None else [])
-                if trail is not None and rig is not None:
-                    history.append(d.xpos[rig.body].copy())
-                    del history[:-keep]
-                    if len(history) > 1:
-                        extra.append(Trail(np.array(history), width=trail.width, line_px=trail.line_px))
-                add_items(renderer.scene, extra)
-                img = renderer.render()
-                if overlay is not None:
-                    img = draw_text(img, overlay(i, d))
-                append(img)
-                n += 1
+        for i, q in enumerate(frames):
+            d.qpos[:] = q
+            mujoco.mj_forward(model, d)
+            if rig is not None:
+                rig.update(cam, d, dt if i else 0.0)
+            if before_frame is not None:
+                before_frame(d, renderer)
+            renderer.update_scene(d, cam)
+            extra = list(items) + (list(frame_items(i)) if frame_items is not None else [])
+            if trail is not None and rig is not None:
+                history.append(rig.followed(d))
+                del history[:-keep]
+                if len(history) > 1:
+                    extra.append(Trail(np.array(history), width=trail.width, line_px=trail.line_px))
+            add_items(renderer.scene, extra)
+            img = renderer.render()
+            if overlay is not None:
+                img = draw_text(img, overlay(i, d))
+            yield img
     finally:
         renderer.close()
-    log.info("wrote %d frames to %s", n, path)
-    return n

@@ -53,6 +53,13 @@ RATE_WINDOW_S = 2.0
 """The overlay's real-time factor is measured over the last this many wall seconds."""
 FRAME_S = 1.0 / 30.0
 """How often the view is refreshed, s of simulated time."""
+MAX_FRAME_GAP_S = 0.25
+"""The longest wall time between two pictures while the simulation runs behind real time:
+frames are dropped to catch up (the picture shows the latest state), but not all of them."""
+SHADOW_SIZE = 1024
+"""The viewer's shadow map side, texels (videos use 4096): MuJoCo redraws the window without
+pause, and a software renderer (Xvfb) spent most of each frame on a 4096 x 4096 shadow pass;
+:meth:`AnimalViewer.show` waits for the frame being drawn."""
 
 #: What the selection's local point is set to once a click is taken: MuJoCo writes a real
 #: point there on the next double-click on a geom (and leaves it on a click into the void)
@@ -94,8 +101,13 @@ class AnimalViewer:
         self.distance = distance
         launch = launch or mujoco.viewer.launch_passive
         before = set(threading.enumerate())
-        self.handle = launch(model, data, key_callback=self.keys.put, show_left_ui=False,
-                             show_right_ui=False)
+        shadow = int(model.vis.quality.shadowsize)
+        model.vis.quality.shadowsize = min(shadow, SHADOW_SIZE)  # read as the window opens
+        try:
+            self.handle = launch(model, data, key_callback=self.keys.put, show_left_ui=False,
+                                 show_right_ui=False)
+        finally:
+            model.vis.quality.shadowsize = shadow
         # the viewer renders in a daemon thread; close() must wait for it to tear its
         # window down, or the exiting interpreter terminates GLFW under it (seen here:
         # GLXBadDrawable, then a segfault or a hang)
@@ -112,7 +124,13 @@ class AnimalViewer:
         self._take_selection()
         self._t0_wall: float | None = None
         self._t0_sim = 0.0
+        self._last_frame_wall = 0.0
+        self._last_drawn_sim: float | None = None
         self.next_frame = 0.0
+        self.frames = 0
+        """Pictures drawn (:meth:`show` calls that reached the window)."""
+        self.dropped = 0
+        """:meth:`show` calls skipped to catch up with real time."""
 
     def _camera(self) -> None:
         with self.handle.lock():
@@ -187,14 +205,26 @@ class AnimalViewer:
              texts: tuple[str, str] | None = None) -> bool:
         """Draw ``data`` with ``items``, the flashes and the overlay (``texts``: its labels and
         values columns; the real-time factor and :data:`HELP` are added), then wait until real
-        time catches up with ``sim_time``; False once the window is closed or Escape pressed."""
+        time catches up with ``sim_time``; False once the window is closed or Escape pressed.
+        Behind real time by more than :data:`FRAME_S` the picture is dropped (at most
+        :data:`MAX_FRAME_GAP_S` of wall time apart): the window shows fewer pictures rather
+        than the animal in slow motion."""
         if not self.running:
             return False
         sim_time = float(sim_time)
-        dt = 0.0 if self._last_sim is None else max(0.0, sim_time - self._last_sim)
+        drawn = self._last_drawn_sim
+        dt = 0.0 if drawn is None else max(0.0, sim_time - drawn)  # since the last picture
         self._last_sim = sim_time
         self._flashes = [(end, it) for end, it in self._flashes if end >= sim_time]
         now = time.perf_counter()
+        if (self._t0_wall is not None
+                and (now - self._t0_wall) - (sim_time - self._t0_sim) > FRAME_S
+                and now - self._last_frame_wall < MAX_FRAME_GAP_S):
+            # behind real time by more than a frame: this picture is dropped (the next one
+            # moves the camera's filters on by the time since the last one drawn)
+            self.dropped += 1
+            return True
+        self._last_drawn_sim = sim_time
         rate = self._recent_rate(sim_time, now)
         with self.handle.lock():
             if self.tracking:
@@ -206,7 +236,9 @@ class AnimalViewer:
             f"{rate:.2f}x" if rate is not None else "-") + f"\n{HELP}"
         self.handle.set_texts((None, mujoco.mjtGridPos.mjGRID_TOPLEFT, labels, values))
         self.handle.sync()
+        self.frames += 1
         now = time.perf_counter()
+        self._last_frame_wall = now
         if self._t0_wall is None:
             self._t0_wall, self._t0_sim = now, sim_time
         ahead = (sim_time - self._t0_sim) - (now - self._t0_wall)

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 
 import mujoco
 import numpy as np
+import pytest
 
 from flapsim.render.viewer import AnimalViewer
 
@@ -51,3 +52,48 @@ def test_a_double_click_is_a_world_point_taken_once():
     # the same spot again counts again
     h.click(0, [4.0, -1.0, 0.0])
     assert len(v.pending_clicks()) == 1
+
+
+class _Window(_Handle):
+    """A stand-in window that counts the pictures it is handed."""
+
+    def __init__(self, m) -> None:
+        super().__init__()
+        self.cam = mujoco.MjvCamera()
+        self.user_scn = mujoco.MjvScene(m, 100)
+        self.synced = 0
+
+    def is_running(self) -> bool:
+        return True
+
+    def set_texts(self, texts) -> None:
+        self.texts = texts
+
+    def sync(self) -> None:
+        self.synced += 1
+
+
+def test_pictures_behind_real_time_are_dropped_not_slowed(monkeypatch):
+    from flapsim.render import viewer as V
+
+    clock = [100.0]  # a wall clock the test moves (the machine's load must not decide)
+    monkeypatch.setattr(V.time, "perf_counter", lambda: clock[0])
+    monkeypatch.setattr(V.time, "sleep", lambda s: clock.__setitem__(0, clock[0] + s))
+    m = mujoco.MjModel.from_xml_string(XML)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    w = _Window(m)
+    v = AnimalViewer(m, d, "box", launch=lambda *a, **kw: w)
+    frame = V.FRAME_S
+    assert v.show(0.0) and w.synced == 1  # the first picture starts the clock
+    # the simulation took 3 frames of wall time for one frame of flight: behind, dropped
+    clock[0] += 3 * frame
+    assert v.show(frame) and (w.synced, v.dropped) == (1, 1)
+    # ... but never for longer than MAX_FRAME_GAP_S: then one is drawn however late
+    clock[0] += V.MAX_FRAME_GAP_S
+    assert v.show(2 * frame) and (w.synced, v.dropped) == (2, 1)
+    # on time again (the simulation ahead of the clock): drawn, and the show waits for real time
+    late = clock[0] - 100.0
+    assert v.show(late + 0.5 * frame) and (w.synced, v.dropped) == (3, 1)
+    assert clock[0] - 100.0 == pytest.approx(late + 0.5 * frame)
+    assert (v.frames, v.dropped) == (3, 1)

@@ -20,6 +20,8 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 
+from flapsim.render.world import grass_xml, sky_xml
+
 BODY_RGBA = (0.80, 0.74, 0.66, 1.0)
 """Pale grey-buff."""
 HEAD_RGBA = (0.82, 0.74, 0.72, 1.0)
@@ -66,10 +68,9 @@ def _scene(root: ET.Element) -> None:
     asset = root.find("asset")
     for t in asset.findall("texture"):
         if t.get("name") == "sky":
-            t.attrib.update(builtin="gradient", rgb1="0.42 0.62 0.88", rgb2="0.93 0.96 1.0")
+            t.attrib.update(sky_xml())
         elif t.get("name") == "grid":
-            t.attrib.update(builtin="checker", rgb1="0.40 0.55 0.30", rgb2="0.36 0.50 0.27",
-                            mark="edge", markrgb="0.28 0.36 0.22", width="256", height="256")
+            t.attrib.update(grass_xml())
     for mat in asset.findall("material"):
         if mat.get("name") == "grid":
             # texuniform: the texture repeats per metre of the plane, each holding 2 x 2 squares

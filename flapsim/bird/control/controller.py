@@ -250,9 +250,10 @@ class WingbeatController:
             err = refine_error(e.S, S_t, self.regressor.w)
             if best is None or err < best[0]:
                 best = (err, P, projected, e)
-                if self.lookahead is not None and self.predictor is None:
+                if self.lookahead is not None and self.predictor is None and i < n:
                     # the next wingbeat's reference if this one is flown, on the other core
-                    # while the next correction is simulated here
+                    # while the next correction is simulated here (after the last correction
+                    # nothing runs here meanwhile: the next wingbeat simulates it itself)
                     self.lookahead.submit(e.snapshot, self._reference_after(P), self.ref)
             if i == n:
                 break

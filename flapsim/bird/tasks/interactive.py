@@ -242,6 +242,8 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
             "pushes": cmd.pushes, "gusts": cmd.gusts, "events": cmd.events,
             "max_wind_m_s": max_wind,
             "real_time_factor": rtf,
+            "frames_drawn": view.frames if view is not None else 0,
+            "frames_dropped": view.dropped if view is not None else 0,
             "wingbeats": len(headings) - 1}
 
 

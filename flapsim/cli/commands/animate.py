@@ -25,6 +25,7 @@ from flapsim.modal.gaits import (
     gait,
     gait_file_of,
     head_orientation_error,
+    model_file,
     plan_from_file,
     plan_gait,
     resolve_model,
@@ -303,7 +304,8 @@ def run(args: argparse.Namespace) -> dict:
               f"-> {args.sheet}")
         out["sheet"] = args.sheet
     if args.video:
-        frames = render_poses(model, list(anim.qpos), args.video, fps=args.fps, track=True)
+        frames = render_poses(model, list(anim.qpos), args.video, source=model_file(spec),
+                               fps=args.fps)
         print(f"video ({frames} frames) -> {args.video}")
         out["video"] = args.video
     if args.browse:

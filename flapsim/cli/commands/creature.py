@@ -10,6 +10,7 @@ from flapsim.core.errors import InputError
 from flapsim.core.validate import add_output_arg, quantity
 from flapsim.modal.creatures import (
     CREATURES,
+    creature_file,
     is_model_file,
     load_creature,
     run_creature,
@@ -81,7 +82,8 @@ def run(args: argparse.Namespace) -> dict:
         print(f"model: {r['model_file']}")
     print(f"real-time factor {r['realtime_factor']:.1f} (simulated s per wall s)")
     if args.video and frames is not None:
-        n = render_poses(model, list(frames), args.video, fps=fps, track=True)
+        n = render_poses(model, list(frames), args.video, source=creature_file(args.model),
+                         fps=fps, progress=not args.no_progress)
         print(f"video: {n} frames -> {args.video}")
         result["video"] = {"path": str(args.video), "frames": n, "fps": fps}
     return result

@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> dict:
             model, result, modes, amplitude_rad=float(np.radians(args.amplitude_deg)),
             cycles=args.cycles,
         )
-        n = render_poses(model, poses, args.video)
+        n = render_poses(model, poses, args.video, source=path)
         print(f"video: modes {', '.join(map(str, modes))} ({n} frames, 1 cycle/s) -> {args.video}")
         out["video"] = {"path": str(args.video), "modes": modes, "frames": n,
                         "display_cycle_s": 1.0, "amplitude_deg": args.amplitude_deg}

@@ -214,9 +214,12 @@ def modal_db(tmp_path_factory, dove):
     return path
 
 
-def test_the_viewer_draws_each_frame_bent(dove, modal_db):
+def test_the_viewer_draws_each_frame_bent(dove, modal_db, monkeypatch):
     from flapsim.bird.tasks.interactive import view_flight
+    from flapsim.render import viewer
 
+    # every picture drawn however slowly this machine flies (the viewer drops late ones)
+    monkeypatch.setattr(viewer, "MAX_FRAME_GAP_S", 0.0)
     frames: list = []
     r = view_flight(0.3, modal_db, feathers="modal",
                     launch=lambda m, d, **kw: _Handle(m, d, frames))
