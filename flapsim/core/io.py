@@ -79,8 +79,6 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None,
             try:
                 tmp_path = _temporary(target, suffix)
             except OSError as exc:
-                if exc.errno in (errno.ENOSPC, errno.EDQUOT):  # no room for even an empty file
-                    raise output_failed(target, exc, left) from None
                 raise InputError(f"cannot write {target}: {exc.strerror or exc}") from exc
         # mkstemp creates 0600; give the result the permissions a plain open() would
         umask = os.umask(0)
