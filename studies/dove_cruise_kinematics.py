@@ -10,9 +10,18 @@ Each candidate's noise-free cycle becomes a reference wingbeat
 controller flies it (P0 with a tail bias, searched with it: the capture's tail bend stays the
 captured dove's -10 deg) from the cruise start; its cost is the servos'
 mean power plus 30 W per m/s of climb or sink, 6 W per m/s^2 of speed change and 0.05 W per
-degree of pitch drift per wingbeat (a trimmed wingbeat pays nothing extra); a cycle that
+degree of pitch drift per wingbeat (``--trim-weight 20``: 20 W and 0.2 W; a trimmed wingbeat
+pays nothing extra); a cycle that
 comes closer than 14 deg to a joint's range at its capture's extreme conditions costs
 100 W and more, one over Strouhal number 0.4 50 W and more.
+
+With ``--roll-max-deg R`` the trimmed wingbeat must also ride out the flight suite's sideways
+push (8 N for 0.1 s at the trunk, :data:`flapsim.scenarios.flight.PUSH_FORCES_N`'s middle):
+flown on unchanged for two wingbeats, the trunk may roll at most R deg (0.1 W per degree
+beyond). The learned controller acts once a wingbeat, so the roll a sideslip starts within
+one must stay inside what its database covers: a stroke hung below the shoulders (flap mean
+-5.5 deg) rolled the dove 81 deg in the wingbeat after the push, the paper's slow stroke (its
+mean +13.5 deg above) 22 deg.
 
     python studies/dove_cruise_kinematics.py --speed 8 --json cruise.json
     python -m flapsim.bird.flight.synthetic_capture      # the capture from CRUISE, then
@@ -27,6 +36,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict, replace
 
+import mujoco
 import numpy as np
 from scipy.optimize import differential_evolution, minimize_scalar
 
@@ -41,12 +51,18 @@ from flapsim.bird.flight.synthetic_capture import (
     cycle_angles,
     kinematic_reference,
 )
-from flapsim.bird.flight.wingbeat import TAIL_BEND, p0, reference_wingbeat, with_tail_bias
+from flapsim.bird.flight.wingbeat import (
+    TAIL_BEND,
+    control_table,
+    p0,
+    reference_wingbeat,
+    with_tail_bias,
+)
 from flapsim.core.io import write_json
 
 #: (Kinematics field, low, high): the cruise ranges searched (degrees unless named)
 KNOBS = (
-    ("frequency_hz", 7.0, 9.5),          # 0.84-1.14 of Pennycuick's 8.3 Hz
+    ("frequency_hz", 7.0, 9.5),          # 0.84-1.14 of Pennycuick's 8.3 Hz (--max-hz lowers it)
     ("downstroke_fraction", 0.50, 0.56),
     ("flap_mean_deg", -15.0, 25.0),
     ("flap_amplitude_deg", 28.0, 58.0),  # 56-116 deg of stroke
@@ -81,6 +97,18 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--start", help="a JSON of an earlier search: its kinematics seed the population")
     ap.add_argument("--json", help="write the best kinematics and its budget here")
+    ap.add_argument("--trim-weight", type=float, default=6.0,
+                    help="W per m/s^2 of speed change (and 1/120 of it per deg of pitch drift a "
+                         "wingbeat) added to the power (default 6; at 6 a search with "
+                         "--roll-max-deg took a wingbeat slowing 0.34 m/s^2 for 0.4 W less: 20 "
+                         "trims it)")
+    ap.add_argument("--max-hz", type=float, default=None,
+                    help="the highest wingbeat rate searched (default 9.5 Hz; 8.5 keeps the "
+                         "capture's cycles, 3 %% noise and slower flights included, inside 1.15x "
+                         "Pennycuick's 8.3 Hz)")
+    ap.add_argument("--roll-max-deg", type=float, default=None,
+                    help="also ride out an 8 N sideways push rolling at most this much over the "
+                         "two wingbeats after it (default: not asked)")
     ap.add_argument("--trim-capture", action="store_true",
                     help="instead of searching: the tail bias at which the bundled capture's "
                          "average wingbeat (P0) holds height and speed best at --speed")
@@ -150,6 +178,33 @@ def strouhal(kin: Kinematics, semispan: float, speed: float) -> float:
     return float(kin.frequency_hz * excursion / speed)
 
 
+#: The sideways push the search asks the trimmed wingbeat to ride out: N, s
+PUSH_N, PUSH_S = 8.0, 0.1
+
+
+def push_roll_deg(fl: DoveFlight, p: np.ndarray, wingbeats: int = 2) -> float | None:
+    """The largest |trunk roll| (deg) at the ends of ``wingbeats`` wingbeats of ``p`` flown
+    on from the flight's state, the first starting with a sideways push of :data:`PUSH_N` for
+    :data:`PUSH_S`; None when the flight diverges."""
+    m, d = fl.model, fl.data
+    trunk = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "trunk")
+    ctrl, _, _ = control_table(fl.ref, p, m.opt.timestep, fl.kp, fl.kv)
+    steps = int(round(PUSH_S / m.opt.timestep))
+    worst = 0.0
+    try:
+        for wb in range(wingbeats):
+            for k in range(len(ctrl)):
+                d.ctrl[:] = ctrl[k]
+                d.xfrc_applied[trunk, 1] = PUSH_N if (wb == 0 and k < steps) else 0.0
+                mujoco.mj_step(m, d)
+                if not np.all(np.isfinite(d.qvel[0:6])):
+                    return None
+            worst = max(worst, abs(float(np.degrees(fl.reduced_state()[1]))))
+    finally:
+        d.xfrc_applied[trunk, :] = 0.0
+    return worst
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
     dove = Dove.load(induced=True)
@@ -175,7 +230,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if b is None:
             return 1e3
         drift = abs(b["pitch_deg"][-1] - b["pitch_deg"][args.skip - 1]) / (args.wingbeats - args.skip)
-        return b["power_W"] + 30.0 * abs(b["climb_m_s"]) + 6.0 * abs(b["accel_m_s2"]) + 0.05 * drift
+        w = args.trim_weight
+        c = (b["power_W"] + 30.0 * abs(b["climb_m_s"]) + w * abs(b["accel_m_s2"])
+             + w / 120.0 * drift)
+        if args.roll_max_deg is not None:
+            roll = push_roll_deg(fl, with_tail_bias(p0(), bias))
+            c += 1e3 if roll is None else 0.1 * max(roll - args.roll_max_deg, 0.0)
+        return c
 
     x0 = None
     if args.start:
@@ -185,23 +246,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         values["tail_bias_deg"] += values.get("tail_bend_deg", -10.0) + 10.0
         x0 = np.clip([values[k[0]] for k in KNOBS], [k[1] for k in KNOBS], [k[2] for k in KNOBS])
     t0 = time.perf_counter()
-    res = differential_evolution(cost, [(k[1], k[2]) for k in KNOBS], maxiter=args.maxiter,
+    bounds = [(k[1], k[2]) for k in KNOBS]
+    if args.max_hz is not None:
+        bounds[0] = (bounds[0][0], float(args.max_hz))
+        if x0 is not None:
+            x0[0] = min(x0[0], float(args.max_hz))
+    res = differential_evolution(cost, bounds, maxiter=args.maxiter,
                                  popsize=args.popsize, seed=args.seed, polish=False, tol=1e-4,
                                  x0=x0)
     best, bias = kinematics(res.x, base)
     fl.ref = kinematic_reference(best)
     bal = wingbeat_balance(fl, with_tail_bias(p0(), bias), args.wingbeats, args.skip, args.speed)
+    roll = push_roll_deg(fl, with_tail_bias(p0(), bias))
     fl.close()
     out = {"speed_m_s": args.speed, "kinematics": asdict(best), "tail_bias_deg": bias,
            "cost": float(res.fun),
            "evaluations": evals[0], "wall_s": time.perf_counter() - t0, "balance": bal,
            "stroke_deg": 2 * best.flap_amplitude_deg,
-           "strouhal": strouhal(best, semispan, args.speed)}
+           "strouhal": strouhal(best, semispan, args.speed), "push_roll_deg": roll}
     print(f"cruise kinematics at {args.speed:g} m/s: servos {bal['power_W']:.2f} W, climb "
           f"{bal['climb_m_s']:+.3f} m/s, speed change {bal['accel_m_s2']:+.3f} m/s^2, "
           f"pitch {bal['pitch_deg'][args.skip - 1]:+.1f} -> {bal['pitch_deg'][-1]:+.1f} deg; "
           f"stroke {out['stroke_deg']:.0f} deg, Strouhal {out['strouhal']:.2f} "
-          f"({evals[0]} wingbeats searched in {out['wall_s']:.0f} s)")
+          f"({evals[0]} wingbeats searched in {out['wall_s']:.0f} s); rolled {roll:.0f} deg "
+          f"after an {PUSH_N:g} N sideways push")
     for k, v in zip(KNOBS, res.x, strict=True):
         print(f"  {k[0]:24s} {v:8.3f}")
     if args.json:

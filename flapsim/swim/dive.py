@@ -13,10 +13,16 @@ of :func:`flapsim.swim.simulate.swim` (``control_hook``), above the stroke's lay
    than the sea water it displaces instead of 14 N lighter), and swim the dive
    (``flapsim/swim/data/manoeuvres/surface_dive.toml``, one cycle) with the basic layer
    only.
-3. **Swim on** under water with the stroke and its layers.
+3. **Swim on** under water with the stroke and its layers, or with ``under_stroke``
+   (a stroke that can swim down, steered by its own per-cycle layer towards the point).
+   The front crawl cannot: its pitch-down sequence turns it 2-3 deg a cycle, and its
+   arms recover through the air, which they cannot do under water; crawl swimmers go
+   down and come back up with the breaststroke's underwater pull and kick, as in a
+   breaststroke pullout, then crawl on at the surface.
 4. **Breathe in** (back to the start volume, as a swimmer surfacing takes a breath)
    once the head or the pelvis is within the target's radius of the point, or after
-   ``breath_hold_s``: buoyancy and the stroke bring the swimmer up.
+   ``breath_hold_s``: buoyancy and the stroke bring the swimmer up; with an
+   ``under_stroke``, the stroke takes over again once the head is out of the water.
 
 Only the swimmer acts: the lung volume changes the thorax's buoyant volume (the
 breathing action) and the dive is joint targets for the PD muscles; every force is
@@ -36,9 +42,13 @@ import numpy as np
 from flapsim.core.errors import InputError
 from flapsim.swim.layers import BasicStrokeLayer
 from flapsim.swim.model import SEGMENTS, Swimmer
+from flapsim.swim.per_cycle import CycleLayer, load_table
 from flapsim.swim.strokes import load_stroke, stroke_tables
 
 DIVE_FILE = Path(__file__).resolve().parent / "data" / "manoeuvres" / "surface_dive.toml"
+#: the stroke each stroke swims under water when it cannot itself (the crawl's arms
+#: recover through the air): see the module docstring
+UNDER_WATER_STROKE = {"crawl": "breaststroke"}
 #: lung air after breathing out [L]: the swimmer's mass M at 1044 kg/m^3 plus V L of
 #: air has density 1028 kg/m^3 (REFERENCE_DATA) when V = M (1/1028 - 1/1044) = 1.33 L
 EXHALED_L = 1.33
@@ -61,6 +71,12 @@ class SurfaceDive:
     events: dict = field(default_factory=dict)
     #: closest the head or the pelvis came to the point below [m]
     closest_m: float = math.inf
+    #: the stroke swum under water (a name or file, e.g. "breaststroke"; its per-cycle
+    #: table steers it), None: the swim's own stroke
+    under_stroke: str | None = None
+    #: with an ``under_stroke``: it takes over this much further out than ``trigger_m``
+    #: [m] (about two breaststroke cycles)
+    switch_ahead_m: float = 2.5
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.target.points, dtype=float)
@@ -72,7 +88,8 @@ class SurfaceDive:
             raise InputError(f"exhaled lung air must be in (0, {self.lungs_l}] L")
         self.dive = load_stroke(str(DIVE_FILE))
         self.state = "swim"
-        self.events = {k: None for k in ("dive", "under", "reached", "inhale")}
+        self.events = {k: None for k in ("dive", "under", "reached", "inhale", "stroke_again")}
+        self._under: tuple | None = None
         self._thorax = SEGMENTS.index("thorax")
         self._vol0: float | None = None
         self._saved: tuple | None = None
@@ -95,23 +112,26 @@ class SurfaceDive:
         radius = float(self.target.radius)
         if self.state == "swim":
             horiz = float(np.hypot(*(self.point[:2] - sw.com()[:2])))
-            if horiz < self.trigger_m and layer.phase < 0.05:  # at a cycle start
+            if (self.under_stroke is not None and self._under is None
+                    and horiz < self.trigger_m + self.switch_ahead_m):
+                # the under-water stroke from a little before the dive: the dive starts
+                # from its glide, level and not rolled
+                self._leave_stroke(layer, t)
+                self._start_under_stroke(sw, layer)
+            elif horiz < self.trigger_m and layer.phase < 0.05:  # at a cycle start
                 self._breathe(sw, self.exhaled_l)
-                stack = getattr(layer, "stack", None)
-                self._saved = (layer.rate_hz, stack.mode if stack is not None else None)
-                if stack is not None:  # the dive is swum as keyed: basic layer only
-                    stack.set_mode("basic", t)
+                if self._saved is None:
+                    self._leave_stroke(layer, t)
                 layer.set_tables(stroke_tables(self.dive, sw.joints, layer.tables.q.shape[0]))
                 layer.rate_hz, layer.phase = 1.0 / self.dive.period_s, 0.0
                 self.state, self.events["dive"] = "dive", t
         elif self.state == "dive":
             if t - self.events["dive"] >= self.dive.period_s:  # one dive cycle: swim on
-                rate, mode = self._saved
-                layer.rate_hz, layer.phase = rate, 0.0
-                layer.set_tables(layer.base_tables)
-                stack = getattr(layer, "stack", None)
-                if stack is not None and mode is not None:
-                    stack.set_mode(mode, t)
+                if self._under is not None:
+                    layer.phase = 0.0
+                    self._under[1].reset()
+                else:
+                    self._stroke_again(layer, t)
                 self.state, self.events["under"] = "under", t
         if self.state in ("dive", "under"):
             if near <= radius and self.events["reached"] is None:
@@ -119,4 +139,45 @@ class SurfaceDive:
             if self.events["reached"] is not None or t - self.events["dive"] >= self.breath_hold_s:
                 self._breathe(sw, self.lungs_l)  # breathe in: up to the surface
                 self.state, self.events["inhale"] = "up", t
+        if self._under is not None and self.state != "dive":
+            if self.state == "up" and head[2] > sw.params.water_level:
+                self._under = None  # the head is out: the stroke again
+                self._stroke_again(layer, t)
+            else:
+                self._swim_under(layer, d)
         return True
+
+    def _leave_stroke(self, layer: BasicStrokeLayer, t: float) -> None:
+        """Keep the swim's stroke rate and layers for later; its layers rest (the dive
+        is swum as keyed, the under-water stroke steers itself)."""
+        stack = getattr(layer, "stack", None)
+        self._saved = (layer.rate_hz, stack.mode if stack is not None else None)
+        if stack is not None:
+            stack.set_mode("basic", t)
+
+    def _stroke_again(self, layer: BasicStrokeLayer, t: float) -> None:
+        """Back to the swim's own stroke and layers."""
+        rate, mode = self._saved
+        layer.rate_hz, layer.phase = rate, 0.0
+        layer.set_tables(layer.base_tables)
+        stack = getattr(layer, "stack", None)
+        if stack is not None and mode is not None:
+            stack.set_mode(mode, t)
+        self.events["stroke_again"] = t
+
+    def _start_under_stroke(self, sw: Swimmer, layer: BasicStrokeLayer) -> None:
+        """The under-water stroke, steered by its own per-cycle layer, drives the swim's
+        basic layer (whose clock and PD muscles run it) from now on."""
+        st = load_stroke(self.under_stroke)
+        basic = BasicStrokeLayer(sw, st, nsamp=layer.tables.q.shape[0])
+        table = load_table(st, layers="cycle", body_shape=sw.params.body_shape)
+        cycle = CycleLayer(basic, table, target=self.target)
+        layer.rate_hz, layer.phase = basic.rate_hz, 0.0
+        self._under = (basic, cycle)
+
+    def _swim_under(self, layer: BasicStrokeLayer, data: mujoco.MjData) -> None:
+        basic, cycle = self._under
+        basic.phase, basic.cycles = layer.phase, layer.cycles
+        cycle.update(data)
+        layer.set_tables(basic.tables)
+        layer.rate_hz = basic.rate_hz

@@ -85,6 +85,10 @@ class Point:
         px, py = self.at(t)
         return math.atan2(py - com_xy[1], px - com_xy[0])
 
+    def velocity(self, t: float = 0.0) -> np.ndarray:
+        """The point's horizontal velocity (vx, vy) [m/s]."""
+        return np.array([self.vx, self.vy])
+
     def distance(self, com_xy: np.ndarray, t: float | np.ndarray = 0.0) -> np.ndarray:
         """Distance(s) [m] from centre-of-mass position(s) (..., 2) to the point at
         time(s) ``t``."""
@@ -97,6 +101,56 @@ class Point:
         if self.z is not None:
             out["z_m"] = self.z
         return out
+
+
+@dataclass
+class Circle:
+    """A target circling ``centre`` (x, y) [m] on a circle of ``orbit`` [m] at ``speed``
+    [m/s] (anticlockwise seen from above), starting at angle ``phase`` [rad] from +x;
+    ``reached`` within ``radius`` [m] (as a :class:`Point`)."""
+
+    centre: tuple[float, float] = (0.0, 0.0)
+    orbit: float = 3.0
+    speed: float = 0.4
+    phase: float = 0.0
+    radius: float = 0.5
+
+    def __post_init__(self) -> None:
+        vals = (*self.centre, self.orbit, self.speed, self.phase, self.radius)
+        if len(self.centre) != 2 or not all(math.isfinite(v) for v in vals):
+            raise InputError(f"a circling target needs a finite centre (x, y), orbit, speed, "
+                             f"phase and radius, got {self.centre}, {self.orbit}, {self.speed}, "
+                             f"{self.phase}, {self.radius}")
+        if not (self.orbit > 0 and self.speed >= 0 and self.radius > 0):
+            raise InputError("a circling target needs an orbit > 0 m, a speed >= 0 m/s and a "
+                             "radius > 0 m")
+
+    def _angle(self, t: float | np.ndarray) -> np.ndarray:
+        return self.phase + np.asarray(t, dtype=float) * self.speed / self.orbit
+
+    def at(self, t: float | np.ndarray) -> np.ndarray:
+        """(x, y) at time(s) ``t`` [s]: (..., 2)."""
+        a = self._angle(t)
+        return np.stack([self.centre[0] + self.orbit * np.cos(a),
+                         self.centre[1] + self.orbit * np.sin(a)], -1)
+
+    def position(self, t: float) -> np.ndarray:
+        return np.array([*self.at(t), 0.0])
+
+    def velocity(self, t: float = 0.0) -> np.ndarray:
+        a = float(self._angle(t))
+        return self.speed * np.array([-math.sin(a), math.cos(a)])
+
+    def heading(self, com_xy: np.ndarray, vel_xy: np.ndarray, t: float = 0.0) -> float:
+        px, py = self.at(t)
+        return math.atan2(py - com_xy[1], px - com_xy[0])
+
+    def distance(self, com_xy: np.ndarray, t: float | np.ndarray = 0.0) -> np.ndarray:
+        return np.linalg.norm(np.asarray(com_xy)[..., :2] - self.at(t), axis=-1)
+
+    def describe(self) -> dict:
+        return {"kind": "circle", "centre_m": list(self.centre), "orbit_m": self.orbit,
+                "speed_m_s": self.speed, "phase_deg": math.degrees(self.phase), "radius_m": self.radius}
 
 
 def _elevation(com: np.ndarray, p: np.ndarray) -> float:
@@ -191,6 +245,15 @@ class Trajectory:
 
     def elevation(self, com: np.ndarray, t: float = 0.0) -> float:
         return _elevation(com, self.position(t))
+
+    def velocity(self, t: float = 0.0) -> np.ndarray:
+        """Horizontal velocity (vx, vy) [m/s] along the segment at time ``t`` (0 before
+        the first line and after the last)."""
+        a = self.table
+        i = int(np.searchsorted(a[:, 0], t, side="right")) - 1
+        if i < 0 or i >= len(a) - 1:
+            return np.zeros(2)
+        return (a[i + 1, 1:3] - a[i, 1:3]) / (a[i + 1, 0] - a[i, 0])
 
     def describe(self) -> dict:
         return {"kind": "trajectory", "name": self.name, "rows": len(self.table),

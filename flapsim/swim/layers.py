@@ -18,6 +18,8 @@ swimmer's state: treading water's balance.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -153,6 +155,10 @@ class FeedbackLayer:
         #: or None: hold the start heading
         self.target = target
         self.desired_heading = 0.0
+        #: heading [rad] of the frame the signals' x and y are measured in (0: the world's,
+        #: whose +x is the start heading); an upright swimmer facing elsewhere (treading
+        #: water where a swim ended) leans and drifts in its own frame
+        self.frame_yaw = 0.0
         self.weights = {k: 0.0 for k in self.names}
         self._last_t: float | None = None
         self.history: list[list[float]] = []
@@ -196,6 +202,11 @@ class FeedbackLayer:
                                                        float(data.time))
         values = signals(sw.model, data, self.trunk, self.root, self.reference,
                          self.forward_axis, self.desired_heading)
+        if self.frame_yaw:
+            c, s = math.cos(self.frame_yaw), math.sin(self.frame_yaw)
+            for k in ("tilt", "tilt_rate", "offset", "vel"):
+                x, y = values[f"{k}_x"], values[f"{k}_y"]
+                values[f"{k}_x"], values[f"{k}_y"] = c * x + s * y, -s * x + c * y
         q = self._q0.copy()
         v = self._v0.copy()
         dt = now - self._last_t if self._last_t is not None else 0.0

@@ -246,18 +246,24 @@ class CycleLayer:
 
     def __init__(self, basic: BasicStrokeLayer, table: CycleTable, target: object | None = None,
                  feedback: object | None = None, gain: float = 1.0,
-                 speed: float | None = None) -> None:
+                 speed: float | None = None, plan: object | None = None) -> None:
         st = basic.stroke
         if not st.cycle:
             raise InputError(f"stroke {st.name!r} has no [cycle.*] sequences")
         if speed is not None and not (SPEED_RANGE[0] <= speed <= SPEED_RANGE[1]):
             raise InputError(f"the speed asked must be {SPEED_RANGE[0]:g}..{SPEED_RANGE[1]:g} "
                              f"m/s, got {speed:g}")
-        if speed is not None and st.posture != "prone":
+        if (speed is not None or plan is not None) and st.posture != "prone":
             raise InputError(f"stroke {st.name!r} swims on the spot: a speed is asked of the "
                              "prone strokes (crawl, breaststroke)")
         #: the speed asked [m/s] (None: the stroke's own rate); held by the stroke rate
         self.speed = speed
+        #: something with ``asked_speed(com_xy, t, cruise) -> m/s`` that sets the speed
+        #: asked of each cycle (:class:`flapsim.swim.arrival.Approach`: slow down for a
+        #: target, match a moving one's speed); ``speed``, if given, is its cruise
+        self.plan = plan
+        #: the speed asked of the cycle being swum [m/s] (None: not holding a speed)
+        self.asked: float | None = None
         self.rate0 = float(basic.rate_hz)
         self._last: tuple[float, np.ndarray] | None = None
         self.basic = basic
@@ -283,6 +289,9 @@ class CycleLayer:
         """Decide again at the next update (and weights back to 0 until then)."""
         self._cycle = -1
         self.weights = {k: 0.0 for k in self.basic.stroke.cycle}
+        # the next speed hold starts afresh: a cycle swum under other layers (a dive,
+        # treading water) says nothing about this stroke's rate
+        self._last = None
 
     def desired(self, data: mujoco.MjData) -> tuple[float | None, float | None]:
         """(heading or None, elevation or None) the target asks for now [rad]. Without
@@ -306,7 +315,7 @@ class CycleLayer:
         sw = self.basic.swimmer
         heading, elev = self.desired(data)
         speed = float(np.linalg.norm(data.subtree_linvel[self.root]))
-        if self.speed is not None:
+        if self.speed is not None or self.plan is not None:
             self._hold_speed(data)
         off, level = self.table.baseline(speed)
         att = attitude(data, self.trunk, self.forward_axis, self.head) - off
@@ -343,13 +352,16 @@ class CycleLayer:
         t = float(data.time)
         xy = data.subtree_com[self.root][:2].copy()
         b = self.basic
+        full = float(np.max(self.table.speeds))
+        asked = self.speed if self.plan is None else \
+            float(self.plan.asked_speed(xy, t, self.speed if self.speed is not None else full))
+        self.asked = asked
         if self._last is None:
-            full = float(np.max(self.table.speeds))
-            rate = self.rate0 * self.speed / max(full, 0.1)
+            rate = self.rate0 * asked / max(full, 0.1)
         else:
             t0, xy0 = self._last
             swum = float(np.linalg.norm(xy - xy0)) / max(t - t0, 1e-6)
-            rate = b.rate_hz * (self.speed / max(swum, 0.05)) ** SPEED_GAIN
+            rate = b.rate_hz * (asked / max(swum, 0.05)) ** SPEED_GAIN
         b.rate_hz = float(np.clip(rate, RATE_RANGE[0] * self.rate0, RATE_RANGE[1] * self.rate0))
         self._last = (t, xy)
 

@@ -19,7 +19,7 @@ from flapsim.fluid.flow import FlowField
 from flapsim.render.scene import Marker, add_items
 from flapsim.render.video import Camera, CameraRig, new_renderer
 from flapsim.swim.continuous import RULES, HandRules
-from flapsim.swim.goals import Heading, Path, Point, Trajectory, Waypoints
+from flapsim.swim.goals import Circle, Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams, check_diverged
 from flapsim.swim.per_cycle import CycleLayer, load_table
@@ -118,6 +118,9 @@ class SwimResult:
     #: the body's long axis (the left side's rise above the horizontal) and the trunk's
     #: incline (the pelvis-to-neck line above the horizontal) [rad]
     carriage: np.ndarray | None = field(default=None, repr=False)
+    #: the approach's switches between swimming and treading water
+    #: (:meth:`flapsim.swim.arrival.Approach.summary`), if one ran
+    approach: dict | None = None
 
     def _steady(self) -> np.ndarray:
         t0 = SETTLE_CYCLES / self.rate_hz if self.seconds > 3 * SETTLE_CYCLES / self.rate_hz else 0
@@ -169,7 +172,7 @@ class SwimResult:
             return {}
         out: dict = {"target": t.describe()}
         xy = self.com[:, :2]
-        if isinstance(t, Point):
+        if isinstance(t, (Point, Circle)):
             d = t.distance(xy, self.times)
             hit = np.flatnonzero(d <= t.radius)
             out["target_distance_end_m"] = float(d[-1])
@@ -177,6 +180,9 @@ class SwimResult:
             out["target_reached_s"] = float(self.times[hit[0]]) if len(hit) else None
             sel = self._steady()
             out["target_distance_mean_m"] = float(d[sel].mean())
+            # how well it was held once caught (a moving target) or stayed at (a fixed one)
+            out["target_distance_after_reached_mean_m"] = float(d[hit[0]:].mean()) \
+                if len(hit) else None
         elif isinstance(t, Path):
             # distance to the path and progress along it, in order (as the steering saw
             # it), until the end of the path comes within the look-ahead
@@ -282,6 +288,7 @@ class SwimResult:
             "feedback_weights": self.feedback,
             "cycle_weights": self.cycle,
             "hand_rules": self.hands,
+            "approach": self.approach,
             **self.tracking(),
             **self._target_summary(),
             **self._carriage_summary(sel),
@@ -308,7 +315,7 @@ def swim(
     progress: bool = False,
     swimmer: Swimmer | None = None,
     feedback: bool = True,
-    target: Heading | Point | Path | Waypoints | Trajectory | None = None,
+    target: Heading | Point | Circle | Path | Waypoints | Trajectory | None = None,
     control_hook: Callable[[Swimmer, BasicStrokeLayer], bool] | None = None,
     on_frame: Callable[[np.ndarray], None] | None = None,
     layers: str | None = None,
@@ -316,6 +323,7 @@ def swim(
     cycle_table: object | None = None,
     hand_params: object | None = None,
     speed: float | None = None,
+    approach: object | None = None,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
@@ -334,6 +342,9 @@ def swim(
     :class:`flapsim.swim.continuous.HandRuleParams` instead of the defaults.
     ``target``: a heading, a point (with a depth: 3D), waypoints, a timed trajectory or
     a path (flapsim.swim.goals).
+    ``approach``: a :class:`flapsim.swim.arrival.Approach` for ``target``: the per-cycle
+    layer asks the speed it plans of each cycle (``speed``, if given, is the cruise),
+    and at a fixed target the swimmer treads water (``result.approach``: its switches).
     ``control_hook(swimmer, layer)`` runs at every control step (50 Hz) after the
     layers; returning False ends the swim early (the viewer uses it; ``layer.stack``
     is the :class:`LayerStack`, whose mode it may switch).
@@ -370,6 +381,16 @@ def swim(
                 raise
             log.warning("stroke %s has no per-cycle calibration table: the per-cycle layer is "
                         "off", st.name)
+    hook = control_hook
+    if approach is not None:
+        if cyc is None or layers == "basic":
+            raise InputError("an approach asks its speeds of the per-cycle layer: swim a prone "
+                             "stroke (crawl, breaststroke) with layers 'cycle' or 'all'")
+        cyc.plan = approach
+
+        def hook(sw: Swimmer, layer: BasicStrokeLayer) -> bool:
+            approach(sw, layer)
+            return control_hook is None or control_hook(sw, layer)
     hands = HandRules(layer, target, RULES if rules is None else tuple(rules), hand_params) \
         if (rules is None or len(rules)) else None
     if hands is not None:
@@ -439,7 +460,7 @@ def swim(
                     stack.update(d)
                     if bar is not None and i:
                         bar.update(control_every)
-                    if control_hook is not None and not control_hook(sw, layer):
+                    if hook is not None and not hook(sw, layer):
                         nsteps = i  # stopped early: what was swum so far is the result
                         if times[-1] != d.time:
                             times.append(d.time)
@@ -463,6 +484,9 @@ def swim(
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - t_wall
+    if approach is not None and approach.state != "swim":
+        # the layers rest while treading water at the target, not switched off
+        stack.mode = layers
     return SwimResult(st.name, nsteps * dt, layer.rate_hz, layer.cycles, np.asarray(times),
                       np.asarray(com), np.asarray(head), wall, sw.params.water_level,
                       power=np.asarray(power), frames=frames,
@@ -472,6 +496,7 @@ def swim(
                       hands=hands.summary() if (hands is not None and stack.mode == "all") else None,
                       target_xyz=np.asarray(txyz) if target is not None else None,
                       aim_heading=np.asarray(aim) if target is not None else None,
-                      body_yaw=np.asarray(yaw), carriage=np.asarray(carriage))
+                      body_yaw=np.asarray(yaw), carriage=np.asarray(carriage),
+                      approach=approach.summary() if approach is not None else None)
 
 

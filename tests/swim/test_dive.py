@@ -48,3 +48,31 @@ def test_surface_dive_reaches_two_metres_down():
     assert r.head[:, 2].min() < -1.25  # within 0.75 m of a point 2 m down: >= 1.25 m deep
     # breathed in once there: the head comes back up
     assert dive.events["inhale"] >= dive.events["reached"]
+
+
+def test_crawl_dives_with_the_breaststroke_pull_and_crawls_on():
+    from flapsim.swim.dive import UNDER_WATER_STROKE
+    from flapsim.swim.simulate import swim
+
+    wp = Waypoints(np.array([(8.0, 0.0, -1.5), (8.0, 0.0, 0.0)]), 0.75)
+    dive = SurfaceDive(wp, under_stroke=UNDER_WATER_STROKE["crawl"])
+    r = swim("crawl", 24.0, target=wp, control_hook=dive)
+    ev = dive.events
+    # the point 1.5 m down reached: head or pelvis within the 0.75 m radius (an arm's
+    # length: the swimmer could touch it), recomputed for the head from its track
+    head_d = np.linalg.norm(r.head - wp.points[0], axis=1).min()
+    assert ev["reached"] is not None and min(head_d, dive.closest_m) <= 0.75
+    assert r.head[:, 2].min() < -0.75  # within 0.75 m of a point 1.5 m down
+    # then up for air, and the crawl again once the head is out of the water
+    assert ev["inhale"] >= ev["reached"]
+    assert ev["stroke_again"] is not None and ev["stroke_again"] > ev["inhale"]
+    k = np.searchsorted(r.times, ev["stroke_again"])
+    assert r.head[k:, 2].max() > 0.0
+    # breaststroke from before the dive to the surface, the crawl's clock after it
+    assert r.rate_hz == pytest.approx(load_crawl_rate(), rel=1e-9)
+
+
+def load_crawl_rate() -> float:
+    from flapsim.swim.strokes import load_stroke
+
+    return 1.0 / load_stroke("crawl").period_s

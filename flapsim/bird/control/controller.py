@@ -436,6 +436,15 @@ def database_speed(db_path=None, feathers: str = "rigid") -> float:
     return float(cfg.get("cruise_speed") or FlightConfig.speed)
 
 
+def database_pitch(db_path=None, feathers: str = "rigid") -> float:
+    """The trunk pitch a controller database's pre-states were centred at, deg (default: the
+    bundled one of ``feathers``): its flights start there, level (0 for the paper's
+    databases)."""
+
+    cfg = database_config(db_path, feathers)
+    return float(cfg.get("pitch_centre_deg") or 0.0)
+
+
 def database_dove(db_path=None, feathers: str = "rigid") -> Dove:
     """The dove a controller database (default: the bundled one of ``feathers``) was sampled
     with: with its wings' induced flow where its sampling configuration says so."""

@@ -25,7 +25,12 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from flapsim.bird.control.controller import database_dove, database_table, load_controller
+from flapsim.bird.control.controller import (
+    database_dove,
+    database_pitch,
+    database_table,
+    load_controller,
+)
 from flapsim.bird.control.targets import trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
@@ -326,7 +331,10 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         ctl = controller
         fl = ctl.flight
     try:
-        cfg = FlightConfig(speed=task.speed)
+        # the trim is measured from the attitude the database's pre-states were centred at:
+        # a level start leaves a pitched dove's base flight settling over the trim's wingbeats
+        pitch = database_pitch(db, task.feathers)
+        cfg = FlightConfig(speed=task.speed, pitch_deg=pitch)
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         lead = {"bank_lead_s": default_bank_lead(task.feathers, task.bank_lead_s)}
         lead["aoa_per_g_deg"] = default_aoa_per_g(task.feathers, task.aoa_per_g_deg)
@@ -343,7 +351,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
         # the bird starts at the speed asked where it starts (slower at a tight turn there)
         v_start = target.speed_for(0.0, 2.0 * target.lookahead_s * task.speed)
         start_on_path(fl, ctl.P0, task.path, v_start,
-                      wind=None if target.wind is None else target.wind(task.path.point(0.0), 0.0))
+                      wind=None if target.wind is None else target.wind(task.path.point(0.0), 0.0),
+                      pitch_deg=pitch)
         if task.start_speed_change:
             v = fl.data.qvel[0:3]  # along the velocity: the speed changes, not the direction
             v += task.start_speed_change * v / max(float(np.linalg.norm(v)), 1e-9)

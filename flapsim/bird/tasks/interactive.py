@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 
 from flapsim.bird.body.drawing import FeatherDrawing
-from flapsim.bird.control.controller import start_cruise
+from flapsim.bird.control.controller import database_pitch, database_speed, start_cruise
 from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import FlightConfig
@@ -128,11 +128,11 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                            db, method, k, **options)
     view: AnimalViewer | None = None
     try:
-        cmd = Command()
-        cfg = FlightConfig(speed=cmd.speed)
+        cmd = Command(speed=database_speed(db, feathers))  # the speed its samples describe
+        cfg = FlightConfig(speed=cmd.speed, pitch_deg=database_pitch(db, feathers))
         trim = trim_of_base_flight(fl, ctl.P0, cfg)
         if path is not None:
-            start_on_path(fl, ctl.P0, path, cmd.speed)
+            start_on_path(fl, ctl.P0, path, cmd.speed, pitch_deg=cfg.pitch_deg)
             tuning = path_control or PathControlConfig.for_dove(feathers)
             target = PathTarget(trim, path, speed=cmd.speed, **tuning.target_settings(cmd.speed))
         else:

@@ -559,11 +559,11 @@ def path_metrics(path: FlightPath, positions: np.ndarray, quats: np.ndarray,
 
 
 def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float,
-                  wind: np.ndarray | None = None) -> None:
+                  wind: np.ndarray | None = None, pitch_deg: float = 0.0) -> None:
     """The cruise start moved to the path's first point, heading along its first tangent
-    (level trunk, velocity along the tangent at ``speed``). In a ``wind`` (world, m/s) the
-    bird starts as it would be flying there: ``speed`` through the air, crabbed so that its
-    ground track is the tangent."""
+    (trunk pitched ``pitch_deg`` nose up, velocity along the tangent at ``speed``). In a
+    ``wind`` (world, m/s) the bird starts as it would be flying there: ``speed`` through the
+    air, crabbed so that its ground track is the tangent."""
 
     t = path.tangent(0.0)
     heading = float(np.arctan2(t[1], t[0]))
@@ -574,7 +574,7 @@ def start_on_path(fl, P0: np.ndarray, path: FlightPath, speed: float,
         ground = (tw + np.sqrt(max(speed**2 - float(w @ w) + tw**2, 0.0))) * t
         va = ground - w
         heading = float(np.arctan2(va[1], va[0]))
-    start_cruise(fl, P0, FlightConfig(speed=speed))
+    start_cruise(fl, P0, FlightConfig(speed=speed, pitch_deg=pitch_deg))
     d = fl.data
     qz = np.array([np.cos(heading / 2), 0.0, 0.0, np.sin(heading / 2)])
     q = np.empty(4)

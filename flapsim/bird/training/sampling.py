@@ -201,6 +201,10 @@ class SamplingConfig(StoredConfig):
     """Pre-state pitch drawn within +-this, deg (paper: 45)."""
     roll_deg: float = 45.0
     """Pre-state roll drawn within +-this, deg (paper: 45)."""
+    pitch_centre_deg: float = 0.0
+    """The pre-state pitch range's centre, deg (paper: 0, a level trunk). A dove whose trimmed
+    trunk flies pitched (the cruise dove: 18 deg at a wingbeat's start) is sampled around that
+    attitude: its cruise velocity is then level, not along the trunk."""
     angvel_deg_s: float = 4.0
     """Pre-state angular velocity within +-this per body axis, deg/s (paper: 4)."""
     linvel: float = 0.3
@@ -262,6 +266,8 @@ class SamplingConfig(StoredConfig):
             del d["capture_preset"]  # likewise
         if not d["induced"]:
             del d["induced"]  # likewise
+        if d["pitch_centre_deg"] == 0.0:
+            del d["pitch_centre_deg"]  # likewise
         for k in ("centre_flap_scale", "centre_timewarp"):
             if d[k] == 1.0:
                 del d[k]  # likewise
@@ -283,6 +289,9 @@ class SamplingConfig(StoredConfig):
             raise InputError(f"--sigma must be in (0, 10], got {self.sigma}")
         if not (1 <= self.bins <= 10):
             raise InputError(f"bins must be 1..10, got {self.bins}")
+        if not (np.isfinite(self.pitch_centre_deg) and abs(self.pitch_centre_deg) <= 45.0):
+            raise InputError(f"--pre-pitch-centre-deg must be within -45..45, got "
+                             f"{self.pitch_centre_deg}")
         for name in ("pitch_deg", "roll_deg", "angvel_deg_s", "linvel"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
@@ -400,8 +409,15 @@ class SampleWorker:
         d = fl.data
         pitch = np.radians(c.pitch_deg) * (2 * rng.random() - 1)
         roll = np.radians(c.roll_deg) * (2 * rng.random() - 1)
+        cruise = np.array([c.cruise_speed, 0.0, 0.0])
+        if c.pitch_centre_deg:
+            # the trimmed trunk's level flight seen from the trunk: nose-up pitch th turns
+            # the level velocity by th nose-down in the body frame
+            th = np.radians(c.pitch_centre_deg)
+            pitch = pitch + th
+            cruise = c.cruise_speed * np.array([np.cos(th), 0.0, -np.sin(th)])
         q = pose_quat(pitch, roll)
-        v_body = np.array([c.cruise_speed, 0.0, 0.0]) + c.linvel * (2 * rng.random(3) - 1)
+        v_body = cruise + c.linvel * (2 * rng.random(3) - 1)
         w_body = np.radians(c.angvel_deg_s) * (2 * rng.random(3) - 1)
         R = np.zeros(9)
         mujoco.mju_quat2Mat(R, q)

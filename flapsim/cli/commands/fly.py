@@ -12,6 +12,7 @@ from flapsim.bird.control.controller import (
     BaseController,
     cruise_metrics,
     database_dove,
+    database_pitch,
     database_speed,
     database_table,
     fly_controlled,
@@ -58,11 +59,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_output_arg(p, "--video", kinds=(".mp4", ".gif"), renders=True,
                    help="write a chase-camera video (.mp4 or .gif)")
     add_output_arg(p, "--out", kinds=(".npz",), help="write the trajectory (.npz)")
-    p.add_argument("--speed", type=quantity("speed"), default=7.0, help="initial speed, m/s (default 7)")
-    p.add_argument("--pitch-deg", type=quantity("pitch_deg"), default=0.0,
-                   help="initial trunk pitch (default 0)")
-    p.add_argument("--tail-bias-deg", type=quantity("tail_bias_deg"), default=17.0,
-                   help="tail bend added to the reference wingbeat (paper: 17)")
+    p.add_argument("--speed", type=quantity("speed"), default=None,
+                   help="initial speed, m/s (default 7; --cruise: 8.5; --db: the speed its "
+                        "samples were drawn around)")
+    p.add_argument("--pitch-deg", type=quantity("pitch_deg"), default=None,
+                   help="initial trunk pitch, deg (default 0; a learned "
+                        "controller: the pitch its database's pre-states were centred at)")
+    p.add_argument("--tail-bias-deg", type=quantity("tail_bias_deg"), default=None,
+                   help="tail bend added to the reference wingbeat (default 17, the paper's; "
+                        "--cruise: 26)")
     p.add_argument("--table", default=None,
                    help="feather coefficient table (default dickinson1999_profile; a learned "
                         "controller's default: the table its database was sampled with)")
@@ -96,7 +101,7 @@ def run(args: argparse.Namespace) -> dict:
         args.wingbeats = 10
     if args.wingbeats is not None and not 1 <= args.wingbeats <= 10000:
         raise InputError(f"--wingbeats must be 1..10000, got {args.wingbeats}")
-    if not (0.0 <= args.speed <= 30.0):
+    if args.speed is not None and not (0.0 <= args.speed <= 30.0):
         raise InputError(f"--speed must be 0..30 m/s, got {args.speed}")
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
@@ -113,12 +118,20 @@ def run(args: argparse.Namespace) -> dict:
             raise InputError("--cruise flies the base controller with rigid feathers (a learned "
                              "cruise flight: --db with a database trained with train --cruise)")
         args.induced = True
-        # the cruise dove's start and tail bias, where the command line left the defaults
-        defaults = FlightConfig()
-        args.speed = CRUISE.speed if args.speed == defaults.speed else args.speed
-        if args.tail_bias_deg == defaults.tail_bias_deg:
-            args.tail_bias_deg = CRUISE.tail_bias_deg
+        # the cruise dove's start and tail bias, where the command line gave none
+        args.speed = CRUISE.speed if args.speed is None else args.speed
+        args.pitch_deg = CRUISE.pitch_deg if args.pitch_deg is None else args.pitch_deg
+        args.tail_bias_deg = CRUISE.tail_bias_deg if args.tail_bias_deg is None else args.tail_bias_deg
         args.table = args.table or CRUISE.table
+    learned = args.controller == "learned" or bool(args.db)
+    if args.speed is None:
+        # a database's flights are asked the speed it was sampled around
+        args.speed = database_speed(args.db, args.feathers) if args.db else FlightConfig.speed
+    if args.pitch_deg is None:
+        # ... and start at the trunk pitch its pre-states were centred at
+        args.pitch_deg = database_pitch(args.db, args.feathers) if learned else FlightConfig.pitch_deg
+    if args.tail_bias_deg is None:
+        args.tail_bias_deg = FlightConfig.tail_bias_deg
     cfg = FlightConfig(speed=args.speed, pitch_deg=args.pitch_deg, tail_bias_deg=args.tail_bias_deg,
                        **({"table": args.table} if args.table else {}))
     if args.power:  # checked before anything is flown
@@ -136,9 +149,6 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError("--induced flies the base controller with rigid feathers (the "
                          "databases were sampled without the downwash): drop --controller "
                          "learned, --path, --db, --roll-deg and --feathers modal")
-    if args.db and args.speed == FlightConfig.speed:
-        # a database's flights are asked the speed it was sampled around unless told otherwise
-        cfg = dataclasses.replace(cfg, speed=database_speed(args.db, args.feathers))
     if args.path:
         if args.controller != "learned":
             raise InputError("--path needs --controller learned (the base controller cannot steer)")

@@ -13,8 +13,10 @@ from flapsim.core.errors import InputError
 from flapsim.core.io import atomic_video, save_npz
 from flapsim.core.validate import add_input_arg, add_output_arg, quantity, vector
 from flapsim.fluid.flow import FlowField, Source, Vortex
-from flapsim.swim.dive import SurfaceDive
+from flapsim.swim.arrival import Approach
+from flapsim.swim.dive import UNDER_WATER_STROKE, SurfaceDive
 from flapsim.swim.goals import (
+    Circle,
     Heading,
     Path,
     Point,
@@ -53,9 +55,11 @@ def add_target_arguments(p: argparse.ArgumentParser) -> None:
     """What to steer for (shared with ``flapsim sweep``)."""
     g = p.add_mutually_exclusive_group()
     g.add_argument("--target", metavar="X,Y[,Z]", type=_target_arg,
-                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke. "
-                        "A Z below the surface (< 0) is reached by a surface dive (breathe "
-                        "out, pike, swim on under water, breathe in there and come up)")
+                   help="swim to this point [m] (start: origin, facing +x); crawl/breaststroke "
+                        "slow down, stop and tread water there. A Z below the surface (< 0) is "
+                        "reached by a surface dive (breathe out, pike, swim on under water, "
+                        "the crawler with the breaststroke's pull; breathe in there and come "
+                        "up)")
     add_input_arg(g, "--path", metavar="FILE",
                   help="follow a path: a text file of 'x, y' points [m], one per line")
     g.add_argument("--figure8", type=quantity("radius"), metavar="R",
@@ -64,6 +68,10 @@ def add_target_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--moving-target", metavar="X,Y,VX,VY",
                    type=vector(("position", "position", "velocity", "velocity"), 4),
                    help="swim after a point starting at X,Y [m] moving at VX,VY [m/s]")
+    g.add_argument("--circling-target", metavar="CX,CY,R,V",
+                   type=vector(("position", "position", "radius", "velocity"), 4),
+                   help="swim after a point circling CX,CY [m] anticlockwise on a circle of R "
+                        "[m] at V [m/s], starting on its -y side (R below the centre)")
     add_input_arg(g, "--trajectory", metavar="FILE",
                   help="swim after a target moving along a timed trajectory: a text file of "
                        "'t, x, y' or 't, x, y, z' lines [s, m]")
@@ -109,6 +117,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    type=vector(("position", "position", "circulation"), 3),
                    help="add a vertical line vortex at X,Y of circulation GAMMA [m^2/s]")
     add_target_arguments(p)
+    p.add_argument("--no-approach", action="store_true",
+                   help="swim at the stroke's own speed to a target: do not slow down for a "
+                        "fixed one and tread water there, nor match a moving one's speed "
+                        "(prone strokes with the per-cycle layer approach by default)")
     p.add_argument("--viewer", action="store_true",
                    help="watch and steer in the MuJoCo viewer, in real time: a double-click "
                         "places the target (default 10 m ahead), arrow keys move it 1 m, "
@@ -196,6 +208,11 @@ def target_from_args(args: argparse.Namespace):
     if args.moving_target is not None:
         x, y, vx, vy = _vec(args.moving_target, "--moving-target", 4)
         return Point(x, y, vx=vx, vy=vy)
+    if getattr(args, "circling_target", None) is not None:
+        cx, cy, r, v = _vec(args.circling_target, "--circling-target", 4)
+        if v < 0:
+            raise InputError(f"--circling-target speed must be >= 0 m/s, got {v:g}")
+        return Circle((cx, cy), r, v, -np.pi / 2)
     if args.path is not None:
         return load_path(args.path, args.lookahead)
     if args.figure8 is not None:
@@ -306,16 +323,19 @@ def run(args: argparse.Namespace) -> dict:
             raise InputError(f"a target below the surface is reached by a surface dive, which "
                              f"the prone strokes swim (crawl, breaststroke), not "
                              f"{args.stroke!r}")
-        if stroke.name == "crawl":
-            raise InputError("the crawl does not reach a point below the surface (after the "
-                             "surface dive its pitch-down sequence, 2.5-4.5 deg per cycle, "
-                             "cannot take it down): dive with --stroke breaststroke")
         if args.viewer:
             raise InputError("the viewer's target stays on the surface: give --target X,Y")
         if layers == "basic":
             raise InputError("a dive needs the per-cycle layer (it pitches towards the point "
                              "below): --layers cycle or all")
-        dive = SurfaceDive(target, lungs_l=params.lung_volume_l)
+        dive = SurfaceDive(target, lungs_l=params.lung_volume_l,
+                           under_stroke=UNDER_WATER_STROKE.get(stroke.name))
+    approach = None
+    if (isinstance(target, (Point, Circle)) and not args.viewer and layers != "basic"
+            and not getattr(args, "no_approach", False)):
+        stroke = load_stroke(args.stroke)
+        if stroke.posture == "prone" and stroke.cycle:
+            approach = Approach(target)
     if args.viewer:
         check_display()
         if target is not None and not isinstance(target, Point):
@@ -339,7 +359,7 @@ def run(args: argparse.Namespace) -> dict:
                           progress=viewer is None, layers=layers, target=target,
                           swimmer=swimmer, control_hook=viewer if viewer is not None else dive,
                           on_frame=on_frame,
-                          cycle_table=cycle_table, speed=args.speed)
+                          cycle_table=cycle_table, speed=args.speed, approach=approach)
         finally:
             if viewer is not None:
                 viewer.close()
@@ -396,6 +416,10 @@ def run(args: argparse.Namespace) -> dict:
                        is not None else "not reached")
             print(f"  target           ({t['x_m']:g}, {t['y_m']:g}) m: {reached}; closest "
                   f"{s['target_distance_min_m']:.2f} m, at the end {s['target_distance_end_m']:.2f} m")
+        elif t["kind"] == "circle":
+            print(f"  target           circling ({t['centre_m'][0]:g}, {t['centre_m'][1]:g}) m "
+                  f"on {t['orbit_m']:g} m at {t['speed_m_s']:g} m/s: closest "
+                  f"{s['target_distance_min_m']:.2f} m")
         elif t["kind"] == "path":
             done = (f"completed at {s['path_completed_s']:.1f} s" if s["path_completed_s"]
                     is not None else f"{100 * s['path_completed_fraction']:.0f}% done")
@@ -410,8 +434,15 @@ def run(args: argparse.Namespace) -> dict:
                        if s["time_to_reach_s"] is not None else "never within reach")
             print(f"  to target        {s['distance_to_target_mean_m']:.2f} m mean, "
                   f"{s['distance_to_target_max_m']:.2f} m max; {reached}")
+        if s.get("target_distance_after_reached_mean_m") is not None:
+            print(f"  held             {s['target_distance_after_reached_mean_m']:.2f} m mean "
+                  "from the target after first reaching it")
         if "heading_error_mean_deg" in s:
             print(f"  heading error    {s['heading_error_mean_deg']:.1f} deg mean")
+    if s.get("approach"):
+        a = s["approach"]
+        sw = ", ".join(f"{e['to']} at {e['t']:.1f} s" for e in a["switches"]) or "no switch"
+        print(f"  approach         speed asked from the distance; {sw}")
     for name, w in (s.get("feedback_weights") or {}).items():
         print(f"    {name:14s} weight mean {w['mean']:+.2f}, |w| {w['mean_abs']:.2f}, "
               f"saturated {100 * w['saturated_fraction']:.0f}% of the time")

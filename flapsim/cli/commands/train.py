@@ -59,6 +59,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 2: elevation asked within +-this per wingbeat (default 15)")
     p.add_argument("--pre-pitch-deg", type=float, default=None,
                    help="phase 1: pre-state pitch within +-this (default 45, the paper's)")
+    p.add_argument("--pre-pitch-centre-deg", type=float, default=None, metavar="DEG",
+                   help="phase 1: the pre-state pitch range's centre, deg, with a level cruise "
+                        "velocity (default 0, the paper's; the cruise dove's trunk starts its "
+                        "trimmed wingbeats at 18: docs/design/flight.md)")
     p.add_argument("--pre-roll-deg", type=float, default=None,
                    help="phase 1: pre-state roll within +-this (default 45, the paper's)")
     p.add_argument("--pre-velocity", type=float, default=None, metavar="M_S",
@@ -175,7 +179,7 @@ def validate(args: argparse.Namespace) -> None:
             raise InputError(f"{flag} must be 0..{hi}, got {v}")
     if args.phase == 2 and any(getattr(args, k, None) is not None for k in (
             "pre_velocity", "pre_angvel", "pre_speed", "centre_flap_scale", "centre_timewarp",
-            "centre_wingbeat")):
+            "centre_wingbeat", "pre_pitch_centre_deg")):
         raise InputError("--pre-velocity, --pre-angvel, --pre-speed, --centre-flap-scale, "
                          "--centre-timewarp and --centre-wingbeat are for phase 1; phase 2 keeps "
                          "its --from database's pre-states and samples around its discovered "
@@ -231,6 +235,8 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
         kwargs["sigma"] = args.sigma
     if getattr(args, "pre_pitch_deg", None) is not None:
         kwargs["pitch_deg"] = args.pre_pitch_deg
+    if getattr(args, "pre_pitch_centre_deg", None) is not None:
+        kwargs["pitch_centre_deg"] = float(args.pre_pitch_centre_deg)
     if getattr(args, "pre_roll_deg", None) is not None:
         kwargs["roll_deg"] = args.pre_roll_deg
     if getattr(args, "pre_velocity", None) is not None:
@@ -326,6 +332,7 @@ def train_from_args(args: argparse.Namespace, config: Any, worker_cls: type, kin
 _NOT_FOR_MERGE = (("samples", None, "--samples"), ("phase", 1, "--phase"), ("sigma", None, "--sigma"),
                   ("from_db", None, "--from"), ("discovery", None, "--discovery"),
                   ("pre_pitch_deg", None, "--pre-pitch-deg"), ("pre_roll_deg", None, "--pre-roll-deg"),
+                  ("pre_pitch_centre_deg", None, "--pre-pitch-centre-deg"),
                   ("pre_velocity", None, "--pre-velocity"), ("pre_angvel", None, "--pre-angvel"),
                   ("pre_speed", None, "--pre-speed"), ("centre_flap_scale", None, "--centre-flap-scale"),
                   ("centre_timewarp", None, "--centre-timewarp"),

@@ -128,3 +128,28 @@ def test_the_cruise_database_flies_its_own_dove_and_reference():
         assert ctl.P0[2 * 12 + 1] == pytest.approx(np.radians(CRUISE.tail_bias_deg))
     finally:
         fl.close()
+
+
+def test_a_pitched_databases_tasks_start_at_its_pitch(revolving_db, tmp_path):
+    from flapsim.bird.control.controller import database_pitch
+    from flapsim.bird.flight.dove_flight import pitch_roll
+    from flapsim.bird.tasks.path_control import start_on_path
+
+    # the paper's databases carry no centre: level starts, as ever
+    assert database_pitch() == 0.0 == database_pitch(revolving_db)
+    src = load_database(revolving_db)
+    head = {k: v for k, v in src.header.items() if k != "fields"}
+    head["config"] = {**head["config"], "pitch_centre_deg": 18.0}
+    path = tmp_path / "pitched.db"
+    save_database(path, head, np.arange(300), {k: v[:300] for k, v in src.arrays.items()}, {})
+    assert database_pitch(path) == 18.0
+    fl = DoveFlight(Dove.load(), table="dove_revolving")
+    try:
+        start_on_path(fl, load_controller(fl, path).P0, paths.straight(20.0), 8.5,
+                      pitch_deg=database_pitch(path))
+        # nose up 18 deg along the path's tangent (+x), the velocity level along it
+        pitch, roll = pitch_roll(fl.data.xmat[1].reshape(3, 3))
+        assert np.degrees(pitch) == pytest.approx(18.0, abs=1e-9) and abs(roll) < 1e-12
+        np.testing.assert_allclose(fl.data.qvel[0:3], [8.5, 0.0, 0.0], atol=1e-12)
+    finally:
+        fl.close()

@@ -212,3 +212,31 @@ def test_a_flight_without_its_feather_forces_refuses_to_fly():
     fl.close()  # unregisters the feather forces
     with pytest.raises(SimulationError, match="not registered"):
         cycle.fly_cycle(fl, None, p0())
+
+
+def test_pre_states_centred_on_a_pitched_trim_fly_level():
+    # a trunk pitched th nose up in level flight at v sees (v cos th, 0, -v sin th) in its own
+    # frame: drawn with no spread, the pre-state is exactly that attitude and a level velocity
+    c = SamplingConfig(seed=3, pitch_deg=0.0, roll_deg=0.0, linvel=0.0, angvel_deg_s=0.0,
+                       pitch_centre_deg=18.0, cruise_speed=8.5)
+    w = SampleWorker(c)
+    try:
+        cycle.restore(w.flight, w.pre_state(np.random.default_rng(0)))
+        S = w.flight.reduced_state()
+        th = np.radians(18.0)
+        assert S[0] == pytest.approx(th, abs=1e-12)  # round-off of the quaternion only
+        np.testing.assert_allclose(w.flight.data.qvel[0:3], [8.5, 0.0, 0.0], atol=1e-12)
+        np.testing.assert_allclose(S[2:5], [8.5 * np.cos(th), 0.0, -8.5 * np.sin(th)], atol=1e-12)
+        # spread around the centre: the pitch stays within centre +- range
+        w2 = SampleWorker(SamplingConfig(seed=3, pitch_deg=10.0, pitch_centre_deg=18.0))
+        try:
+            for i in range(10):
+                cycle.restore(w2.flight, w2.pre_state(np.random.default_rng([3, i])))
+                assert abs(w2.flight.reduced_state()[0] - th) <= np.radians(10.0) + 1e-12
+        finally:
+            w2.close()
+    finally:
+        w.close()
+    # the paper's level centre is not written, so older databases' headers are unchanged
+    assert "pitch_centre_deg" not in SamplingConfig().to_dict()
+    assert SamplingConfig(pitch_centre_deg=18.0).to_dict()["pitch_centre_deg"] == 18.0
