@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.validate import require_finite
 
 
 def read_toml(path: str | Path, tables: Iterable[str]) -> dict[str, dict]:
@@ -38,6 +39,7 @@ def read_toml(path: str | Path, tables: Iterable[str]) -> dict[str, dict]:
         raise DataFileError(f"{path}: cannot be read ({exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise DataFileError(f"{path}: not valid TOML ({exc})") from None
+    require_finite(raw, path, fix="write a finite number (flapsim list config prints the defaults)")
     for key, value in raw.items():
         if key not in tables or not isinstance(value, dict):
             raise DataFileError(f"{path}: unknown top-level key {key!r}; the file holds the "

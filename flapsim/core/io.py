@@ -46,21 +46,26 @@ def write_problem(path: str | os.PathLike, suffix: str | None = None) -> str | N
 _NO_ROOM = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS}
 
 
-def output_failed(target: Path, exc: OSError) -> OutputError:
-    """The one-line error for an output the system refused to store."""
-    return OutputError(f"cannot write {target}: {exc.strerror or exc}; nothing was written "
-                       "there (free space, or choose another place)")
+#: What an output the system refused leaves, said after the reason (see :func:`atomic_path`).
+NOTHING_WRITTEN = "nothing was written there (free space, or choose another place)"
+
+
+def output_failed(target: Path, exc: OSError, left: str = NOTHING_WRITTEN) -> OutputError:
+    """The one-line error for an output the system refused to store; ``left`` says what
+    the user still has and what to do."""
+    return OutputError(f"cannot write {target}: {exc.strerror or exc}; {left}")
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None,
-                exclusive: bool = False) -> Iterator[Path]:
+                exclusive: bool = False, left: str = NOTHING_WRITTEN) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
 
     ``suffix`` keeps the extension libraries look at (``np.savez`` appends ``.npz``
     when it is missing, video writers pick a codec from it). ``exclusive``: never replace
     a file at ``path`` (FileExistsError; a hard link, atomic like the rename). A write the
-    file system refuses (a full disk, a quota) is an :class:`OutputError` naming ``path``.
+    file system refuses (a full disk, a quota) is an :class:`OutputError` naming ``path``,
+    then ``left``: what is left of the user's work (a file rewritten in place is as it was).
     """
     target = Path(path)
     parent = target.parent if str(target.parent) else Path(".")
@@ -87,7 +92,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None,
                 os.replace(tmp_path, target)
         except OSError as exc:
             if exc.errno in _NO_ROOM:
-                raise output_failed(target, exc) from None
+                raise output_failed(target, exc, left) from None
             raise
     finally:
         if tmp_path is not None and tmp_path.exists():

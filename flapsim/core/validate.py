@@ -27,6 +27,12 @@ How a command uses it (in its ``add_arguments(parser)``)::
   ``run`` returns ``"exit_status": 1`` when some of its runs failed (the CLI exits with it
   after writing the JSON); see :mod:`flapsim.cli.main`.
 
+Data files: every loader of a file a user passes or flapsim reads (configuration, stroke,
+path, trajectory, capture, gait and label files, databases) hands what it parsed to
+:func:`require_finite`: a NaN or an infinity anywhere in it is a one-line
+:class:`~flapsim.core.errors.DataFileError` naming the file and the entry (an MJCF model's
+compiled arrays are searched by :func:`nonfinite_entry` in :mod:`flapsim.core.loading`).
+
 ``MUJOCO_GL`` (see :func:`gl_problem`): an unknown value, or a backend whose library is
 missing, is noted when the CLI starts (rendering is then disabled so ``import mujoco``
 works and ``flapsim --help`` prints) and becomes a one-line error only when a command
@@ -46,7 +52,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from flapsim.core.errors import InputError
+import numpy as np
+
+from flapsim.core.errors import DataFileError, InputError
 from flapsim.core.io import write_problem
 
 
@@ -195,6 +203,53 @@ def integer_list(lo: int, hi: int, unit: str = "") -> Callable[[str], list[int]]
 
     parse.__name__ = "integer list"
     return parse
+
+
+# -- numbers read from data files ---------------------------------------------------------
+
+def nonfinite_entry(value: object, where: str = "") -> tuple[str, float] | None:
+    """The place (``keys.arm[2]``, ``angles[40, 3]``) and value of the first NaN or infinity
+    in ``value``, a parsed data file: dicts, lists and tuples are walked, numpy arrays
+    searched, numbers tested, anything else (text, booleans, None) is no number. None when
+    every number is finite."""
+    if isinstance(value, bool | str | bytes) or value is None:
+        return None
+    if isinstance(value, float | np.floating):
+        return None if math.isfinite(value) else (where or "the value", float(value))
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind != "f":
+            return None
+        bad = np.argwhere(~np.isfinite(value))
+        if not len(bad):
+            return None
+        at = tuple(int(i) for i in bad[0])
+        index = f"[{', '.join(map(str, at))}]" if at else ""
+        return f"{where or 'the array'}{index}", float(value[at])
+    if isinstance(value, dict):
+        for k, v in value.items():
+            found = nonfinite_entry(v, f"{where}.{k}" if where else str(k))
+            if found:
+                return found
+        return None
+    if isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            found = nonfinite_entry(v, f"{where}[{i}]")
+            if found:
+                return found
+    return None
+
+
+def require_finite(value: object, file: str | os.PathLike, where: str = "",
+                   fix: str = "correct that entry") -> None:
+    """A one-line :class:`DataFileError` naming ``file`` and the entry when ``value`` (a data
+    file's parsed contents, or part of it at ``where``) holds a NaN or an infinity: the one
+    check every loader of a data file makes. Such a number was taken before and turned into
+    motion that never steered or a simulation that diverged far from its cause."""
+    found = nonfinite_entry(value, where)
+    if found is not None:
+        place, v = found
+        raise DataFileError(f"{file}: {place} is {v!r}, a non-finite number (NaN or infinity); "
+                            f"{fix}")
 
 
 # -- files -------------------------------------------------------------------------------

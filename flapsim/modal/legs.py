@@ -47,6 +47,7 @@ import mujoco
 import numpy as np
 
 from flapsim.core.errors import InputError, ModelError
+from flapsim.core.validate import require_finite
 from flapsim.modal.heuristics import Labels, Point, point_jacobian, point_world
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -202,6 +203,7 @@ def read_label_file(path: str | Path) -> dict:
             data = tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"label file {str(p)!r} is not valid TOML: {e}") from None
+    require_finite(data, f"label file {str(p)!r}")
     known = {"feet", "knees", "hands", "head", "forward"}
     unknown = set(data) - known
     if unknown:

@@ -48,6 +48,7 @@ import numpy as np
 
 from flapsim.core.errors import InputError, SimulationError
 from flapsim.core.io import atomic_path
+from flapsim.core.validate import require_finite
 from flapsim.modal.analysis import rest_pose, tangent_difference
 from flapsim.modal.animate import Component
 from flapsim.modal.heuristics import Labels, Point, point_world
@@ -394,6 +395,8 @@ class GaitFile:
                 t = tomllib.load(f)
         except tomllib.TOMLDecodeError as e:
             raise InputError(f"gait file {str(p)!r} is not valid TOML: {e}") from None
+        require_finite(t, f"gait file {str(p)!r}", fix="correct that entry (or write the file "
+                       "again with --save-gait)")
         g, rest = t.get("gait", {}), t.get("rest", {})
         modes = t.get("modes", [])
         if not modes:

@@ -25,6 +25,7 @@ from typing import Any
 from flapsim.bird.control.controller import bundled_database_path
 from flapsim.core.errors import DataFileError, InputError
 from flapsim.core.io import _jsonable, atomic_path, read_regular
+from flapsim.core.validate import nonfinite_entry
 from flapsim.scenarios.registry import get
 
 KIND = "flapsim-eval-journal"
@@ -106,6 +107,9 @@ def _record_problem(rec: Any, version: int) -> str | None:
     for key, kind in _RESULT_ENTRIES.items():
         if not isinstance(result.get(key), kind):
             return f"its result's {key!r} is {type(result.get(key)).__name__}, not {kind.__name__}"
+    found = nonfinite_entry(result, "result")
+    if found is not None:  # results are written with null for a number that is not finite
+        return f"its {found[0]} is {found[1]!r}, a non-finite number"
     return None
 
 

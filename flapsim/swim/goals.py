@@ -25,6 +25,7 @@ from pathlib import Path as FilePath
 import numpy as np
 
 from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.validate import require_finite
 
 
 @dataclass
@@ -301,8 +302,7 @@ def _read_rows(p: FilePath, ncols: tuple[int, ...], what: str) -> list[list[floa
         first = False
         if len(vals) not in ncols:
             raise DataFileError(f"{p} line {lineno}: expected {what}, got {len(vals)} numbers")
-        if not all(math.isfinite(v) for v in vals):
-            raise DataFileError(f"{p} line {lineno}: non-finite number")
+        require_finite(dict(zip(("t", "x", "y", "z"), vals, strict=False)), f"{p} line {lineno}")
         rows.append(vals)
     return rows
 
@@ -432,8 +432,7 @@ def load_path(path: str, lookahead: float = 2.0) -> Path:
         first = False
         if len(vals) != 2:
             raise DataFileError(f"{p} line {lineno}: expected 2 numbers (x, y), got {len(vals)}")
-        if not all(math.isfinite(v) for v in vals):
-            raise DataFileError(f"{p} line {lineno}: non-finite coordinate")
+        require_finite(dict(zip(("x", "y"), vals, strict=True)), f"{p} line {lineno}")
         pts.append(vals)
     if len(pts) < 2:
         raise DataFileError(f"{p}: a path needs at least two points, found {len(pts)}")

@@ -45,6 +45,7 @@ from flapsim import __version__
 from flapsim.core.errors import DataFileError, InputError
 from flapsim.core.io import read_regular, write_json
 from flapsim.core.parallel import ChunkExecutor, WorkerError
+from flapsim.core.validate import require_finite
 from flapsim.swim.continuous import HandRules, calibration_settings
 from flapsim.swim.feedback import wrap_angle
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
@@ -170,6 +171,8 @@ class CycleTable:
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "<table>") -> CycleTable:
+        # a NaN table was taken, and the swimmer never steered
+        require_finite(d, where, fix="recalibrate (flapsim swim --calibrate)")
         try:
             if d.get("schema") != SCHEMA:
                 raise DataFileError(f"{where}: schema {d.get('schema')!r}, expected {SCHEMA}; "
@@ -190,11 +193,6 @@ class CycleTable:
         bad = set(angles) - set(CYCLE_SEQUENCES)
         if bad:
             raise DataFileError(f"{where}: unknown sequences {sorted(bad)}")
-        for name, a in (("speeds_m_s", speeds), ("weights", weights), ("cycle_start_offset_deg",
-                        offsets), ("level_pitch_roll_deg", level), *angles.items()):
-            if not np.all(np.isfinite(a)):  # a NaN table was taken, and the swimmer never steered
-                raise DataFileError(f"{where}: {name} holds non-finite numbers (NaN or infinity); "
-                                    "recalibrate (flapsim swim --calibrate)")
         return cls(str(d.get("stroke", "")), speeds, weights, angles, offsets, level,
                    dict(d.get("provenance", {})))
 

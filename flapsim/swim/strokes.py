@@ -68,6 +68,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.validate import require_finite
 from flapsim.swim.feedback import SIGNALS
 from flapsim.swim.model import JointInfo
 
@@ -288,6 +289,7 @@ def load_stroke(name_or_path: str) -> Stroke:
 def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
     """A :class:`Stroke` from the parsed contents of a stroke file (a dict laid out as
     the TOML files are); ``path`` names it in error messages."""
+    require_finite(raw, path)
     valid = set(dof_names())
     try:
         period = float(raw.get("period_s", 1.0))

@@ -124,3 +124,44 @@ def test_a_full_disk_while_training_keeps_the_journal_resumable(tmp_path, monkey
     train(cfg, out, 40, FakeWorker, chunk_size=5, progress=False)
     assert out.read_bytes() == ref.read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.db", "ref.db"]
+
+
+def test_a_full_disk_while_finishing_a_journal_keeps_it_and_says_so(tmp_path, monkeypatch, capsys):
+    """Every chunk written, then the finished database (written beside the journal and
+    renamed over it) meets a full disk: the journal is untouched, the line says so and how
+    to resume, and the resumed run finishes to the bytes of an uninterrupted one."""
+    import flapsim.cli.commands.train as cmd
+    from flapsim.bird.control import database
+    from flapsim.bird.training.fake_worker import FakeConfig, FakeWorker
+    from flapsim.cli.main import main
+
+    cfg, out, ref = FakeConfig(seed=2), tmp_path / "a.db", tmp_path / "ref.db"
+    monkeypatch.setattr(cmd, "phase1", lambda args: (cfg, FakeWorker))
+    argv = ["train", "--samples", "40", "--chunk-size", "5", "--workers", "1", "--no-progress",
+            "--out"]
+    assert main([*argv, str(ref)]) == 0  # uninterrupted
+    capsys.readouterr()
+    real_fsync, temporaries = os.fsync, []
+
+    def fsync(fd):  # the second temporary (the first holds the new journal's header) is the
+        # finished database: only it meets the full disk
+        if os.readlink(f"/proc/self/fd/{fd}").startswith(str(tmp_path / ".a.db.")):
+            temporaries.append(fd)
+            if len(temporaries) == 2:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real_fsync(fd)
+
+    monkeypatch.setattr(database.os, "fsync", fsync)
+    argv.append(str(out))
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    held = database.load_database(out)
+    assert not held.finalized and held.n >= 40  # every chunk kept, still a journal
+    assert err == [f"flapsim train: error: cannot write {out}: No space left on device; the "
+                   f"training journal is kept as it was ({held.n} samples in {len(held.chunks)} "
+                   "chunks): free "
+                   "space and run the same command again to resume (it finishes the database)"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.db", "ref.db"]  # no temporary
+    monkeypatch.setattr(database.os, "fsync", real_fsync)
+    assert main(argv) == 0
+    assert out.read_bytes() == ref.read_bytes()

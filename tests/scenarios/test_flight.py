@@ -613,3 +613,31 @@ def test_the_steering_in_the_tube_stops_where_the_bird_left_it():
     assert 0 < inside < len(r.steering_deg)
     assert r.metrics["steering_range_in_tube_deg"] == [float(np.min(r.steering_deg[:inside])),
                                                        float(np.max(r.steering_deg[:inside]))]
+
+
+def test_sigterm_while_table1_trains_exits_143_and_leaves_nothing(tmp_path, sigterm_with_workers):
+    """SIGTERM while --table1 trains its databases printed "interrupted" and exited 130,
+    while --help promises 143. Sent as its sampling workers start: 143, "terminated", no
+    worker left, and nothing in the folder: no JSON, no journal without a sample, not even
+    the cache folder the command made."""
+    status, err, alive = sigterm_with_workers(
+        ["eval", "--table1", "--sizes", "100", "--quick", "--cache", "dbs", "--workers", "2",
+         "--json", "t.json"], tmp_path, settle_s=0.3)  # before a chunk can be done
+    assert status == 143, err
+    assert err.strip().splitlines()[-1] == "flapsim eval: terminated (SIGTERM)", err
+    assert not alive
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupted_table1_says_its_samples_are_kept(tmp_path):
+    """Stopped once a chunk is kept, the line says where the samples are and how to resume."""
+    import argparse
+
+    from flapsim.cli.commands.eval import resume_hint
+
+    args = argparse.Namespace(json=None, table1=True, cache=str(tmp_path / "dbs"))
+    assert resume_hint(args) == ""  # nothing trained yet
+    (tmp_path / "dbs").mkdir()
+    (tmp_path / "dbs" / "phase1_100.db").write_bytes(b"")
+    assert resume_hint(args) == (f"; the samples trained so far are kept in {tmp_path / 'dbs'}: "
+                                 "run the same command again to resume")

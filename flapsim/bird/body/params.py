@@ -12,6 +12,7 @@ import numpy as np
 
 from flapsim.bird.body import feather_geometry as fz
 from flapsim.core.errors import DataFileError
+from flapsim.core.validate import require_finite
 
 PARAM_FILE = Path(__file__).resolve().parent / "data" / "dove.toml"
 
@@ -164,6 +165,7 @@ class DoveParams:
             raise DataFileError(f"dove parameter file {path} does not exist") from None
         except tomllib.TOMLDecodeError as exc:
             raise DataFileError(f"dove parameter file {path} is not valid TOML: {exc}") from None
+        require_finite(raw, f"dove parameter file {path}")
         try:
             b, w, p, s, tl, t, j, pd = (raw[k] for k in ("body", "wing", "primaries", "secondaries",
                                                         "tertials", "tail", "joints", "control"))

@@ -56,7 +56,8 @@ import numpy as np
 
 from flapsim import __version__
 from flapsim.core.errors import DataFileError, InputError, OutputError
-from flapsim.core.io import _jsonable, atomic_path, file_sha256
+from flapsim.core.io import NOTHING_WRITTEN, _jsonable, atomic_path, file_sha256
+from flapsim.core.validate import require_finite
 
 log = logging.getLogger(__name__)
 
@@ -213,6 +214,9 @@ def _decode_payload(payload: bytes, header: dict, where: str) -> tuple[dict, np.
     if n and (index[0] < start or index[-1] >= stop or np.any(np.diff(index) <= 0)):
         raise DataFileError(f"{where}: chunk {start}..{stop} has indices outside it or out of "
                             "order (the file is damaged); delete it and train again")
+    # training keeps only samples whose flights stayed finite: any other is damage
+    require_finite(arrays, f"{where}: chunk {start}..{stop}", fix="the file is damaged or was "
+                   "not written by flapsim train; delete it and train again")
     return {"start": start, "stop": stop, "n": n, "rejected": rejected}, index, arrays
 
 
@@ -428,8 +432,9 @@ def _signals_deferred() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-def _write_atomic(path: Path, blobs: list[bytes], exclusive: bool = False) -> None:
-    with atomic_path(path, exclusive=exclusive) as tmp:
+def _write_atomic(path: Path, blobs: list[bytes], exclusive: bool = False,
+                  left: str = NOTHING_WRITTEN) -> None:
+    with atomic_path(path, exclusive=exclusive, left=left) as tmp:
         with open(tmp, "wb") as fh:
             for b in blobs:
                 fh.write(b)
@@ -612,13 +617,14 @@ def _complete_header(header: dict, finalized: bool) -> dict:
 
 
 def _write_final(path: Path, header: dict, index: np.ndarray, arrays: Mapping[str, np.ndarray],
-                 rejected: Mapping[str, int], examined: int, exclusive: bool = False) -> None:
+                 rejected: Mapping[str, int], examined: int, exclusive: bool = False,
+                 left: str = NOTHING_WRITTEN) -> None:
     header = _complete_header({**header, "samples": int(index.shape[0]),
                                "examined": int(examined)}, finalized=True)
     record = _encode_record(header, 0, int(examined), index, arrays,
                             dict(sorted(rejected.items())))
     with _signals_deferred():
-        _write_atomic(path, [_encode_preamble(header), record], exclusive=exclusive)
+        _write_atomic(path, [_encode_preamble(header), record], exclusive=exclusive, left=left)
 
 
 def save_database(path: str | os.PathLike, header: dict, index: np.ndarray,
@@ -709,7 +715,11 @@ def _finalize_locked(path: Path, data: bytes, n_samples: int | None, float32: bo
         if d["stop"] <= examined:
             for k, v in d["rejected"].items():
                 rejected[k] = rejected.get(k, 0) + v
-    _write_final(path, fin, index, arrays, rejected, examined)
+    # the finished database replaces the journal only once it is whole on disk
+    _write_final(path, fin, index, arrays, rejected, examined,
+                 left=f"the training journal is kept as it was ({db.n} samples in "
+                      f"{len(db.chunks)} chunks): free space and run the same command again to "
+                      "resume (it finishes the database)")
     return load_database(path)
 
 

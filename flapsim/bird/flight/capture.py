@@ -40,6 +40,7 @@ from scipy.spatial.transform import Rotation
 from flapsim.bird.body.params import DOF_NAMES, MIRROR_PERM, N_DOF
 from flapsim.core.errors import DataFileError, InputError
 from flapsim.core.io import save_npz
+from flapsim.core.validate import require_finite
 
 log = logging.getLogger(__name__)
 
@@ -195,6 +196,14 @@ def _load_npz(path: Path) -> CaptureSet:
                 raise DataFileError(f"capture file {path} is not a {SCHEMA} file")
             if tuple(str(s) for s in z["dof_names"]) != DOF_NAMES:
                 raise DataFileError(f"capture file {path}: DOF names differ from the dove model's")
+            require_finite({k: z[k] for k in ("angles", "rate_hz", "cycle_start", "cycle_end")},
+                           f"capture file {path}")
+            # NaN is a cycle without a label (a BVH or CSV capture has none); sampling refuses
+            # it where it needs labels, and an infinity is no label at all
+            require_finite({k: np.where(np.isnan(z[k]), 0.0, z[k])
+                            for k in ("steering_deg", "elevation_deg", "speed")},
+                           f"capture file {path}", fix="a label is a finite number, or NaN for a "
+                           "cycle without one")
             return CaptureSet(
                 z["angles"].astype(float), float(z["rate_hz"]), z["cycle_start"], z["cycle_end"],
                 z["steering_deg"], z["elevation_deg"], z["speed"], bool(z["synthetic"]),
@@ -256,8 +265,10 @@ def read_csv(path: str | Path) -> tuple[np.ndarray, float]:
             data[r - 2] = [float(row[i]) for i in idx]
         except ValueError:
             raise DataFileError(f"capture file {path}: line {r} has a non-numeric value") from None
-    if not np.all(np.isfinite(data)):
-        raise DataFileError(f"capture file {path}: NaN or inf values")
+    bad = np.flatnonzero(~np.all(np.isfinite(data), axis=1))
+    if bad.size:
+        require_finite(dict(zip(need, data[bad[0]], strict=True)),
+                       f"capture file {path}: line {bad[0] + 2}")
     t = data[:, 0]
     return np.radians(data[:, 1:]), _uniform_rate(path, t)
 
@@ -340,6 +351,8 @@ def read_bvh(path: str | Path) -> tuple[np.ndarray, float]:
     except (IndexError, ValueError):
         raise DataFileError(f"capture file {path}: malformed BVH (truncated or non-numeric "
                             "HIERARCHY/MOTION)") from None
+    rows = values.reshape(-1, ncol) if ncol and values.size % ncol == 0 else values
+    require_finite({"Frame Time": frame_time, "MOTION": rows}, f"capture file {path}")  # [frame, channel]
     if frame_time <= 0 or nframes < 2:
         raise DataFileError(f"capture file {path}: BVH needs >= 2 frames and a positive frame time")
     if values.size != nframes * ncol:

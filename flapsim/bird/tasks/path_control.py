@@ -37,6 +37,7 @@ from flapsim.bird.control.targets import GRAVITY, Trim, target_state
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import FlightConfig
 from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.validate import require_finite
 
 MAX_COORD_M = 1e5
 """Largest path coordinate, m (100 km: far beyond any flight; bounds the spline's samples)."""
@@ -223,6 +224,7 @@ def _point(path: Path, where: str, item) -> list[float]:
         except (TypeError, ValueError):
             raise DataFileError(f"path file {path}: {where}: {str(c)[:20]!r} is not a number "
                                 "(metres)") from None
+    require_finite(dict(zip("xyz", out, strict=True)), f"path file {path}: {where}")
     return out
 
 

@@ -338,6 +338,8 @@ def collect_chunk(sample, start: int, stop: int) -> ChunkResult:
     keep, rows, rejected = [], [], {}
     for i in range(start, stop):
         out, why = sample(i)
+        if out is not None and not all(np.all(np.isfinite(v)) for v in out.values()):
+            out, why = None, "non_finite"  # a database holding one is refused when read
         if out is None:
             rejected[why] = rejected.get(why, 0) + 1
         else:

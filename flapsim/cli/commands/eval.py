@@ -253,6 +253,9 @@ def resume_hint(args: argparse.Namespace) -> str:
     if args.json and args.json != "-" and journal_path(args.json).exists():
         return (f"; the finished runs are kept in {journal_path(args.json)}: run the same "
                 "command again to resume")
+    if getattr(args, "table1", False) and args.cache and any(Path(args.cache).glob("phase1_*.db")):
+        return (f"; the samples trained so far are kept in {args.cache}: run the same command "
+                "again to resume")
     return ""
 
 
@@ -375,15 +378,21 @@ def _table1(args: argparse.Namespace, opts: scenarios.EvalOptions) -> dict:
         if any(not (100 <= s <= 10**6) for s in sizes):
             raise InputError(f"--sizes must each be 100..1e6, got {args.sizes}")
     cache = Path(writable_dir("--cache", args.cache))
+    made = not cache.exists()
     cache.mkdir(exist_ok=True)
     # the bundled database's sampling (phase 1, pre-states within 10 deg) and, unless asked
     # otherwise, its seed: one draw of the databases, whose spread docs/design/flight.md
     # measures ("How much the database's random draw matters")
     seed = (args.table1_seed if args.table1_seed is not None
             else runner.bundled_seed(opts.feathers))
-    dbs = runner.table1_databases(sizes, cache, seed, opts.feathers,
-                                  workers=args.workers or usable_cores(),
-                                  backend=args.backend, address=args.address, say=print)
+    try:
+        dbs = runner.table1_databases(sizes, cache, seed, opts.feathers,
+                                      workers=args.workers or usable_cores(),
+                                      backend=args.backend, address=args.address, say=print)
+    except BaseException:
+        if made and not any(cache.iterdir()):  # stopped before a sample was kept
+            cache.rmdir()
+        raise
     runs, labels = runner.table1_runs(name, opts, dbs, sizes)
     runs = runner.lookahead_runs(runs, args.workers, args.backend)
     journal = args._journal = runner.open_journal(args.json, runs)

@@ -20,7 +20,7 @@ from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
 from flapsim.bird.training.train import check_out, train
 from flapsim.core.errors import InputError
 from flapsim.core.io import write_problem
-from flapsim.core.validate import address_problem
+from flapsim.core.validate import address_problem, require_finite
 from flapsim.fluid.coefficients import get_table
 
 HELP = ("train the dove's controller database: sample wingbeats in parallel (local processes "
@@ -218,6 +218,7 @@ def read_centre_wingbeat(path: str) -> tuple[float, ...]:
             isinstance(x, (int, float)) and not isinstance(x, bool) for x in data):
         raise InputError(f"--centre-wingbeat {path} holds no list of numbers (a list, or one "
                          "under \"wingbeat\")")
+    require_finite(data, f"--centre-wingbeat {path}", "wingbeat")
     return tuple(float(x) for x in data)
 
 

@@ -131,7 +131,7 @@ def test_eval_and_fly_options_reach_the_controller(monkeypatch):
 
 @pytest.mark.parametrize("cmd, line, fragment", [
     ("eval", "clip_request = 0.5", "clip_request must be"),
-    ("eval", "clip_request = nan", "clip_request must be"),
+    ("eval", "clip_request = nan", "controller.clip_request is nan, a non-finite number"),
     ("eval", "state_weight = -1", "state_weight must be"),
     ("fly", "clip_request = -0.1", "clip_request must be"),
 ])
