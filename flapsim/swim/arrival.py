@@ -149,10 +149,7 @@ class Approach:
             self._tread = BasicStrokeLayer(sw, self._station_keeping(load_stroke(TREADING)),
                                            nsamp=n)
             self._fb = FeedbackLayer(self._tread)
-        stack = getattr(layer, "stack", None)
-        self._saved = (layer.rate_hz, stack.mode if stack is not None else None)
-        if stack is not None:
-            stack.set_mode("basic", t)
+        self._saved = layer.rest_layers(t)
         layer.set_tables(self._stand_tables)
         layer.rate_hz, layer.phase = 1.0 / self._stand.period_s, 0.0
         self._since = t
@@ -193,12 +190,7 @@ class Approach:
         self.switches.append((t, "tread"))
 
     def _stop_treading(self, layer: BasicStrokeLayer, t: float) -> None:
-        rate, mode = self._saved
-        layer.rate_hz, layer.phase = rate, 0.0
-        layer.set_tables(layer.base_tables)
-        stack = getattr(layer, "stack", None)
-        if stack is not None and mode is not None:
-            stack.set_mode(mode, t)
+        layer.resume(self._saved, t)
         self.state = "swim"
         self.switches.append((t, "swim"))
 

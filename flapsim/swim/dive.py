@@ -150,19 +150,11 @@ class SurfaceDive:
     def _leave_stroke(self, layer: BasicStrokeLayer, t: float) -> None:
         """Keep the swim's stroke rate and layers for later; its layers rest (the dive
         is swum as keyed, the under-water stroke steers itself)."""
-        stack = getattr(layer, "stack", None)
-        self._saved = (layer.rate_hz, stack.mode if stack is not None else None)
-        if stack is not None:
-            stack.set_mode("basic", t)
+        self._saved = layer.rest_layers(t)
 
     def _stroke_again(self, layer: BasicStrokeLayer, t: float) -> None:
         """Back to the swim's own stroke and layers."""
-        rate, mode = self._saved
-        layer.rate_hz, layer.phase = rate, 0.0
-        layer.set_tables(layer.base_tables)
-        stack = getattr(layer, "stack", None)
-        if stack is not None and mode is not None:
-            stack.set_mode(mode, t)
+        layer.resume(self._saved, t)
         self.events["stroke_again"] = t
 
     def _start_under_stroke(self, sw: Swimmer, layer: BasicStrokeLayer) -> None:

@@ -71,6 +71,26 @@ class BasicStrokeLayer:
         self._tq[:] = tables.q.reshape(-1)
         self._tv[:] = tables.v.reshape(-1)
 
+    def rest_layers(self, t: float) -> tuple[float, str | None]:
+        """Leave the stroke for a manoeuvre: the layer stack above (``stack``, set by
+        :class:`~flapsim.swim.simulate.LayerStack`, where there is one) rests in its ``basic``
+        mode; returns what :meth:`resume` needs (the stroke rate, Hz, and the stack's mode)."""
+        stack = getattr(self, "stack", None)
+        saved = (self.rate_hz, stack.mode if stack is not None else None)
+        if stack is not None:
+            stack.set_mode("basic", t)
+        return saved
+
+    def resume(self, saved: tuple[float, str | None], t: float) -> None:
+        """Back to the stroke's own tables, from its cycle's start, at the rate and with the
+        layers :meth:`rest_layers` saved."""
+        rate, mode = saved
+        self.rate_hz, self.phase = rate, 0.0
+        self.set_tables(self.base_tables)
+        stack = getattr(self, "stack", None)
+        if stack is not None and mode is not None:
+            stack.set_mode(mode, t)
+
     def start_pose(self, phase: float = 0.0) -> np.ndarray:
         """Target joint positions (non-root qpos) at ``phase``."""
         tmp = np.zeros(self.swimmer.model.nu)
