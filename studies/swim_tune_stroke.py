@@ -5,9 +5,13 @@ Only joint-angle keyframes move, each within a stated band around the hand-desig
 value and inside the joint's range; the body, the fluid coefficients, the stroke rate
 and the muscles' torque limits stay as they are. The objective is the forward speed
 over a short swim from rest, less penalties for sinking the head and for muscle power
-above a cap (so the optimiser cannot buy speed with superhuman effort).
+above a cap (so the optimiser cannot buy speed with superhuman effort), and optionally
+for a coach's faults: a stroke rate outside a band, a trunk inclined more than a limit,
+hips rolling more than the shoulders.
 
     python studies/swim_tune_stroke.py crawl --generations 25 --out /tmp/crawl_tuned.toml
+    python studies/swim_tune_stroke.py crawl --body rounded --power-cap 150 --rate 0.5,0.7 \
+        --incline-max 10 --roll 40,55 --out /tmp/crawl_rounded.toml
 
 The result is written as a stroke file (comments are not kept: copy the tuned numbers
 into the bundled file by hand, with the reason next to them). Resumable: every
@@ -17,8 +21,10 @@ generation is checkpointed to ``--out`` + ``.state.npz``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import json
+import logging
 import math
 import os
 import sys
@@ -30,6 +36,7 @@ import numpy as np
 
 from flapsim.core.errors import FlapsimError
 from flapsim.core.io import atomic_path
+from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import parse_stroke, stroke_path
 
@@ -41,9 +48,12 @@ _CRAWL = (
     + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 6)]
     + [("key", "elbow_l.pronation", i, 30.0) for i in range(1, 6)]
     + [("all", "neck.flex", 0, 20.0), ("all", "lumbar.flex", 0, 10.0),
-       ("amp", "hip_l.flex", 0, 0.5), ("all", "hip_l.flex", 0, 10.0),
-       ("amp", "knee_l.flex", 0, 0.5), ("all", "ankle_l.plantar", 0, 15.0),
-       ("amp", "thoracic.twist", 0, 0.8), ("period", "", 0, 0.2)]
+       ("all", "thoracic.flex", 0, 15.0),
+       ("amp", "hip_l.flex", 0, 0.8), ("all", "hip_l.flex", 0, 10.0),
+       ("amp", "knee_l.flex", 0, 0.8), ("all", "ankle_l.plantar", 0, 15.0),
+       # -1..3 x the written twist: reversed, the upper trunk rolls with the hips, so the
+       # shoulders roll more than the hips as swimmers' do (Psycharakis & Sanders 2008)
+       ("amp", "thoracic.twist", 0, 2.0), ("period", "", 0, 0.2)]
 )
 _BREAST = (
     [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd") for i in range(1, 6)]
@@ -93,11 +103,17 @@ def _dof_keys(raw: dict, dof: str) -> list:
     return keys[name]
 
 
-def apply_params(raw: dict, spec: list, x: np.ndarray) -> dict:
-    """A copy of the stroke file contents with the parameters ``x`` (in [-1, 1]) applied."""
+def apply_params(raw: dict, spec: list, x: np.ndarray,
+                 periods: tuple[float, float] | None = None) -> dict:
+    """A copy of the stroke file contents with the parameters ``x`` (in [-1, 1]) applied.
+    ``periods`` [s]: the period parameter spans this band (x = -1: the shortest) instead
+    of moving the file's period within its stroke's bounds."""
     out = copy.deepcopy(raw)
     for (kind, _, _, width), xi in zip(spec, x, strict=True):
         if kind == "period":
+            if periods is not None:
+                out["period_s"] = float(periods[0] + 0.5 * (xi + 1.0) * (periods[1] - periods[0]))
+                continue
             lo, hi = PERIODS[out.get("name", "")]
             out["period_s"] = float(np.clip(out["period_s"] + width * xi, lo, hi))
     for (kind, dof, idx, width), xi in zip(spec, x, strict=True):
@@ -125,10 +141,37 @@ RANGES = {"elbow_l.flex": (0.0, 150.0), "elbow_l.pronation": (-90.0, 90.0),
           "ankle_l.inversion": (-35.0, 35.0)}
 
 
+#: cost per W of mean muscle power over the cap (default: 200 W over costs 1 m/s)
+POWER_SLOPE_W = 200.0
+#: cost per deg of trunk incline over --incline-max: 3 deg over costs as much as 0.1 m/s
+#: (a coach's limit, ~5-12 deg in crawl, Zamparo et al. 2009; a steeper trunk is drag the
+#: swimmer pays for, but a small excess should not outweigh a faster stroke)
+INCLINE_COST = 0.1 / 3.0
+#: cost per deg of roll out of order (shoulders below the hips + ROLL_MARGIN_DEG) or out of
+#: the shoulders' band: 10 deg cost as much as 0.1 m/s (roll is how a coach sees the stroke,
+#: Psycharakis & Sanders 2008: shoulders 45-60 > hips 35-45 deg, not a speed the stroke has)
+ROLL_COST = 0.01
+#: cost per m that a hand's or a foot's centre rises above --limbs-top: a limb lifted out
+#: of the water meets no drag in its recovery (a free ride that swimmers do not get in the
+#: breaststroke, whose recovery is under water), so 5 cm cost as much as 0.5 m/s
+LIMBS_COST = 10.0
+ROLL_MARGIN_DEG = 5.0
+
+
+#: one swimmer per body in each worker process: building one (its model and rounded
+#: surface) costs more than a 12 s trial; a reused one swims the same to the bit
+_SWIMMERS: dict[str, Swimmer] = {}
+
+
 def _evaluate(args: tuple) -> tuple[float, dict]:
-    raw, seconds, head_min, power_cap, drift_weight, objective, breathe, breath_height = args
+    (raw, seconds, head_min, power_cap, drift_weight, objective, breathe, breath_height,
+     body, power_slope, incline_max, roll, limbs_top) = args
+    # a trial stroke has no per-cycle table (the layer is off): not worth a warning each
+    logging.getLogger("flapsim").setLevel(logging.ERROR)
     try:
-        s = swim(parse_stroke(raw, "<tuned>"), seconds).summary()
+        if body not in _SWIMMERS:
+            _SWIMMERS[body] = Swimmer(SwimmerParams(body_shape=body))
+        s = swim(parse_stroke(raw, "<tuned>"), seconds, swimmer=_SWIMMERS[body]).summary()
     except FlapsimError:
         return 1e3, {}
     if objective == "speed":
@@ -141,7 +184,16 @@ def _evaluate(args: tuple) -> tuple[float, dict]:
     else:  # keep the head as high as possible, the lowest moment counting as much as the mean
         cost = -0.5 * (s["head_height_mean_m"] + s["head_height_min_m"])
         cost += 0.5 * max(0.0, s["head_horizontal_drift_max_m"] - 0.2)
-    cost += max(0.0, s["muscle_power_mean_w"] - power_cap) / 200.0
+    cost += max(0.0, s["muscle_power_mean_w"] - power_cap) / power_slope
+    if incline_max is not None:
+        cost += INCLINE_COST * max(0.0, s["trunk_incline_deg"] - incline_max)
+    if limbs_top is not None:
+        top = max(s["hands_height_max_m"], s["feet_height_max_m"])
+        cost += LIMBS_COST * max(0.0, top - limbs_top)
+    if roll is not None:
+        sh, hips = s["roll_shoulders_deg"], s["roll_hips_deg"]
+        cost += ROLL_COST * (max(0.0, roll[0] - sh) + max(0.0, sh - roll[1])
+                             + max(0.0, hips + ROLL_MARGIN_DEG - sh))
     # the basic layer cannot steer: a stroke that veers is a worse stroke
     cost += drift_weight * abs(s["lateral_drift_m"]) / s["seconds"]
     return cost, s
@@ -178,6 +230,22 @@ def parser() -> argparse.ArgumentParser:
                     help="mean head-centre height below which a trial is penalised [m]")
     ap.add_argument("--power-cap", type=float, default=450.0,
                     help="mean muscle power above which a trial is penalised [W]")
+    ap.add_argument("--power-slope", type=float, default=POWER_SLOPE_W,
+                    help="watts over the cap that cost as much as 1 m/s of speed")
+    ap.add_argument("--body", choices=("box", "rounded"), default="box",
+                    help="the swimmer's hydrodynamic surface (flapsim swim --body)")
+    ap.add_argument("--rate", metavar="LO,HI", default=None,
+                    help="stroke-rate band [cycles/s]: the period parameter spans it (default: "
+                         "the file's period +- a band, within the stroke's human bounds)")
+    ap.add_argument("--incline-max", type=float, default=None,
+                    help="trunk incline above which a trial is penalised [deg] (off by default)")
+    ap.add_argument("--limbs-top", type=float, default=None,
+                    help="height relative to the surface that the centres of the hands and "
+                         "feet are not to rise above [m] (off by default; the breaststroke's "
+                         "recovery under water: e.g. -0.03)")
+    ap.add_argument("--roll", metavar="LO,HI", default=None,
+                    help="the shoulders' roll band [deg]; also penalised: the hips rolling "
+                         f"within {ROLL_MARGIN_DEG:g} deg of the shoulders (off by default)")
     ap.add_argument("--drift-weight", type=float, default=0.5,
                     help="cost per m/s of sideways drift")
     ap.add_argument("--breathe", type=float, default=1.0,
@@ -198,6 +266,19 @@ def parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     ap = parser()
     a = ap.parse_args(argv)
+    periods = roll = None
+    try:
+        if a.rate is not None:
+            lo, hi = (float(v) for v in a.rate.split(","))
+            if not 0.0 < lo <= hi:
+                raise ValueError
+            periods = (1.0 / hi, 1.0 / lo)
+        if a.roll is not None:
+            roll = tuple(float(v) for v in a.roll.split(","))
+            if len(roll) != 2 or roll[0] > roll[1]:
+                raise ValueError
+    except ValueError:
+        ap.error("--rate and --roll take LO,HI with 0 < LO <= HI, e.g. --rate 0.5,0.7")
     raw = tomllib.loads(stroke_path(a.start or a.stroke).read_text())
     spec, objective = SPECS[a.stroke]
     n = len(spec)
@@ -224,17 +305,18 @@ def main(argv: list[str] | None = None) -> int:
     d_s = 1.0 + c_s + 2.0 * max(0.0, math.sqrt((mu_eff - 1.0) / (n + 1.0)) - 1.0)
     chi_n = math.sqrt(n) * (1.0 - 1.0 / (4.0 * n) + 1.0 / (21.0 * n * n))
     p_s = np.zeros(n) if gen0 == 0 else st["p_s"]
-    with ProcessPoolExecutor(a.workers) as pool:
+    # one worker: evaluate in this process (no second process on a shared machine)
+    with (ProcessPoolExecutor(a.workers) if a.workers > 1 else contextlib.nullcontext()) as pool:
         for gen in range(gen0, a.generations):
             t0 = time.perf_counter()
             z = rng.standard_normal((a.popsize, n))
             xs = np.clip(mean + sigma * z, -1, 1)
             if gen == 0:
                 xs[0] = mean  # the starting stroke itself
-            res = list(pool.map(_evaluate, [(apply_params(raw, spec, x), a.seconds, a.head_min,
-                                             a.power_cap, a.drift_weight, objective,
-                                             a.breathe, a.breath_height)
-                                            for x in xs]))
+            jobs = [(apply_params(raw, spec, x, periods), a.seconds, a.head_min, a.power_cap,
+                     a.drift_weight, objective, a.breathe, a.breath_height, a.body,
+                     a.power_slope, a.incline_max, roll, a.limbs_top) for x in xs]
+            res = list((pool.map if pool is not None else map)(_evaluate, jobs))
             costs = np.array([c for c, _ in res])
             order = np.argsort(costs)
             if costs[order[0]] < best[0]:
@@ -248,7 +330,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"gen {gen + 1}/{a.generations}: best cost {best[0]:.3f} speed "
                   f"{s.get('speed_m_s', float('nan')):.3f} m/s head "
                   f"{s.get('head_height_mean_m', float('nan')):.3f} m power "
-                  f"{s.get('muscle_power_mean_w', float('nan')):.0f} W; gen median "
+                  f"{s.get('muscle_power_mean_w', float('nan')):.0f} W rate "
+                  f"{s.get('stroke_rate_hz', float('nan')):.2f} Hz incline "
+                  f"{s.get('trunk_incline_deg', float('nan')):.1f} roll shoulders/hips "
+                  f"{s.get('roll_shoulders_deg', float('nan')):.0f}/"
+                  f"{s.get('roll_hips_deg', float('nan')):.0f} deg limbs top "
+                  f"{s.get('hands_height_max_m', float('nan')):+.2f}/"
+                  f"{s.get('feet_height_max_m', float('nan')):+.2f} m; gen median "
                   f"{np.median(costs):.3f}; sigma {sigma:.2f}; {time.perf_counter() - t0:.1f} s",
                   flush=True)
             np.savez(state_path + ".tmp.npz", stroke=a.stroke, mean=mean, sigma=sigma,
@@ -256,7 +344,7 @@ def main(argv: list[str] | None = None) -> int:
                      best_cost=best[0], best_x=best[1], best_summary=json.dumps(best[2]))
             os.replace(state_path + ".tmp.npz", state_path)
             with atomic_path(a.out) as tmp:
-                tmp.write_text(dump_toml(apply_params(raw, spec, best[1])))
+                tmp.write_text(dump_toml(apply_params(raw, spec, best[1], periods)))
     print(json.dumps({"best_x": [round(v, 3) for v in best[1]], **best[2]}, indent=1))
     return 0
 

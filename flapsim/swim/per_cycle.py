@@ -109,7 +109,8 @@ def table_path(stroke: Stroke, body_shape: str = "box", for_writing: bool = Fals
     beside = p.with_name(p.stem + ("" if body_shape == "box" else f".{body_shape}") + ".cycle.json")
     if not _bundled(p):
         return beside
-    mine = user_table_dir() / beside.name
+    # a body's own tuning of a stroke (data/strokes/<body>/) keeps its folder there too
+    mine = user_table_dir() / p.resolve().parent.relative_to(STROKE_DIR.resolve()) / beside.name
     return mine if for_writing or mine.is_file() else beside
 
 

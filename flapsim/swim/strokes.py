@@ -214,6 +214,16 @@ def stroke_path(name_or_path: str) -> Path:
     return q
 
 
+def stroke_for_body(name_or_path: str, body_shape: str = "box") -> str:
+    """The stroke to swim on ``body_shape``: a bundled stroke's own tuning for that body
+    (``data/strokes/<body_shape>/<name>.toml``) where there is one, else ``name_or_path``
+    itself (a stroke file is swum as given)."""
+    if body_shape == "box" or Path(name_or_path).suffix == ".toml":
+        return name_or_path
+    q = STROKE_DIR / body_shape / f"{name_or_path}.toml"
+    return str(q) if q.is_file() else name_or_path
+
+
 def _pairs(where: str, raw: object) -> tuple[np.ndarray, np.ndarray]:
     try:
         arr = np.asarray(raw, dtype=float)

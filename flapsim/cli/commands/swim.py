@@ -30,7 +30,7 @@ from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.per_cycle import calibrate, load_table
 from flapsim.swim.plots import track_plot
 from flapsim.swim.simulate import swim
-from flapsim.swim.strokes import load_stroke
+from flapsim.swim.strokes import load_stroke, stroke_for_body
 from flapsim.swim.tow import NARITA_K, tow
 
 HELP = "swim breaststroke, crawl or treading water; report speed, stroke rate and floating height"
@@ -299,6 +299,8 @@ def run(args: argparse.Namespace) -> dict:
         if getattr(args, name) is not None:
             kw[key] = getattr(args, name)
     params = SwimmerParams(**kw)
+    # a bundled stroke tuned on this body (the rounded one has its own) is swum instead
+    args.stroke = stroke_for_body(args.stroke, params.body_shape)
     if args.calibrate and args.tow is not None:
         raise InputError("--calibrate and --tow are two different jobs: give one")
     if args.calibrate:
@@ -404,7 +406,8 @@ def run(args: argparse.Namespace) -> dict:
           f"{100 * s['breathing_cycles_fraction']:.0f}% of the cycles)")
     print(f"  centre of mass   {s['com_height_mean_m']:+.3f} m mean relative to the surface")
     print(f"  head drift       {s['head_horizontal_drift_max_m']:.3f} m max horizontally")
-    print(f"  muscle power     {s['muscle_power_mean_w']:.0f} W mean (joint torques x speeds)")
+    print(f"  muscle power     {s['muscle_power_mean_w']:.0f} W mean (joint torques x speeds, "
+          f"net; {s['muscle_power_positive_mean_w']:.0f} W if no joint's braking is paid back)")
     if "roll_shoulders_deg" in s:
         print(f"  carriage         roll +-{s['roll_shoulders_deg']:.0f} deg shoulders, "
               f"+-{s['roll_hips_deg']:.0f} deg hips; trunk incline {s['trunk_incline_deg']:.0f} deg")
