@@ -13,8 +13,8 @@ hips rolling more than the shoulders.
     python studies/swim_tune_stroke.py crawl --body rounded --power-cap 150 --rate 0.5,0.7 \
         --incline-max 10 --roll 40,55 --out /tmp/crawl_rounded.toml
 
-The result is written as a stroke file (comments are not kept: copy the tuned numbers
-into the bundled file by hand, with the reason next to them). Resumable: every
+The result is written as the starting stroke file with the tuned period and keys in
+place (comments and other sections kept: update the comments that describe numbers). Resumable: every
 generation is checkpointed to ``--out`` + ``.state.npz``.
 """
 
@@ -27,6 +27,7 @@ import json
 import logging
 import math
 import os
+import re
 import sys
 import time
 import tomllib
@@ -199,25 +200,38 @@ def _evaluate(args: tuple) -> tuple[float, dict]:
     return cost, s
 
 
-def dump_toml(raw: dict) -> str:
-    """A stroke file from its contents (keys written one list per dof)."""
-    lines = []
-    for k in ("name", "description", "period_s", "posture", "interpolation"):
-        if k in raw:
-            lines.append(f"{k} = {json.dumps(raw[k])}")
-    if raw.get("pose"):
-        lines.append("\n[pose]")
-        lines += [f'"{k}" = {v:g}' for k, v in raw["pose"].items()]
+def _closing(text: str, i: int) -> int:
+    """Index just past the bracket that closes the one opening at ``text[i]``."""
+    depth = 0
+    for j in range(i, len(text)):
+        depth += {"[": 1, "]": -1}.get(text[j], 0)
+        if depth == 0:
+            return j + 1
+    raise ValueError("unbalanced brackets")
+
+
+def merge_toml(text: str, raw: dict) -> str:
+    """The stroke file ``text`` with the period and every key list of ``raw`` written in
+    place (its comments, per-cycle sequences and other sections kept); a dof the file
+    does not list is added at the end of its joint's section."""
+    text = re.sub(r"(?m)^period_s = [0-9.eE+-]+", f"period_s = {raw['period_s']:.3f}", text)
     for joint, dofs in raw.get("keys", {}).items():
-        lines.append(f"\n[keys.{joint}]")
+        head = re.search(rf"(?m)^\[keys\.{re.escape(joint)}\]\s*$", text)
         for dof, keys in dofs.items():
-            pairs = ", ".join(f"[{p:.3f}, {v:.0f}]" for p, v in keys)
-            lines.append(f"{dof} = [{pairs}]")
-    if raw.get("mirror"):
-        lines.append("\n[mirror]")
-        for t, m in raw["mirror"].items():
-            lines.append(f'{t} = {{ from = "{m["from"]}", shift = {m.get("shift", 0.0):g} }}')
-    return "\n".join(lines) + "\n"
+            pairs = ", ".join(f"[{q:.3f}, {v:.0f}]" for q, v in keys)
+            if head is None:
+                text += f"\n[keys.{joint}]\n"
+                head = re.search(rf"(?m)^\[keys\.{re.escape(joint)}\]\s*$", text)
+            nxt = re.search(r"(?m)^\[", text[head.end():])
+            end = head.end() + (nxt.start() if nxt else len(text) - head.end())
+            m = re.search(rf"(?m)^{re.escape(dof)} = \[", text[head.end():end])
+            if m is None:
+                text = text[:end].rstrip("\n") + f"\n{dof} = [{pairs}]\n\n" + text[end:]
+            else:
+                i = head.end() + m.end() - 1
+                text = text[:i] + f"[{pairs}]" + text[_closing(text, i):]
+            head = re.search(rf"(?m)^\[keys\.{re.escape(joint)}\]\s*$", text)
+    return text
 
 
 def parser() -> argparse.ArgumentParser:
@@ -279,7 +293,8 @@ def main(argv: list[str] | None = None) -> int:
                 raise ValueError
     except ValueError:
         ap.error("--rate and --roll take LO,HI with 0 < LO <= HI, e.g. --rate 0.5,0.7")
-    raw = tomllib.loads(stroke_path(a.start or a.stroke).read_text())
+    text = stroke_path(a.start or a.stroke).read_text()
+    raw = tomllib.loads(text)
     spec, objective = SPECS[a.stroke]
     n = len(spec)
     rng = np.random.default_rng(a.seed)
@@ -344,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
                      best_cost=best[0], best_x=best[1], best_summary=json.dumps(best[2]))
             os.replace(state_path + ".tmp.npz", state_path)
             with atomic_path(a.out) as tmp:
-                tmp.write_text(dump_toml(apply_params(raw, spec, best[1], periods)))
+                tmp.write_text(merge_toml(text, apply_params(raw, spec, best[1], periods)))
     print(json.dumps({"best_x": [round(v, 3) for v in best[1]], **best[2]}, indent=1))
     return 0
 
