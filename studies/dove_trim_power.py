@@ -56,6 +56,15 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--maxiter", type=int, default=25, help="differential-evolution generations")
     ap.add_argument("--popsize", type=int, default=8, help="population per parameter")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--climb-weight", type=float, default=30.0,
+                    help="W added per m/s of climb or sink (default 30)")
+    ap.add_argument("--trim-weight", type=float, default=6.0,
+                    help="W added per m/s^2 of speed change (default 6: a wingbeat slowing "
+                         "0.1 m/s^2 may save 0.6 W; 20 holds the speed)")
+    ap.add_argument("--bound", action="append", default=[], metavar="KNOB=LO:HI",
+                    help="a knob's search range instead of the default (repeatable), e.g. "
+                         "flap_offset_deg=-30:20; every wingbeat is still projected into the "
+                         "joint ranges")
     ap.add_argument("--json", help="write the best wingbeat and its budget here")
     return ap
 
@@ -77,8 +86,27 @@ def wingbeat(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, ref, bias: float = 1
     return project_to_ranges(ref, p, lo, hi)
 
 
+def knob_bounds(overrides: Sequence[str]) -> list[tuple[float, float]]:
+    """Each knob's (low, high), with ``NAME=LO:HI`` overrides."""
+    bounds = {k[0]: (k[3], k[4]) for k in KNOBS}
+    for item in overrides:
+        name, _, rng = item.partition("=")
+        lo_s, _, hi_s = rng.partition(":")
+        if name not in bounds:
+            raise SystemExit(f"--bound: no knob {name!r} (knobs: {', '.join(bounds)})")
+        try:
+            lo_v, hi_v = float(lo_s), float(hi_s)
+        except ValueError:
+            raise SystemExit(f"--bound {item!r}: write NAME=LO:HI with numbers") from None
+        if not lo_v < hi_v:
+            raise SystemExit(f"--bound {item!r}: LO must be below HI")
+        bounds[name] = (lo_v, hi_v)
+    return [bounds[k[0]] for k in KNOBS]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    bounds = knob_bounds(args.bound)
     if args.cruise:
         args.table, args.induced = CRUISE.table, True
     bias = CRUISE.tail_bias_deg if args.cruise else FlightConfig.tail_bias_deg
@@ -93,10 +121,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         b = wingbeat_balance(fl, wingbeat(x, lo, hi, fl.ref, bias), args.wingbeats, args.skip, args.speed)
         if b is None:
             return 1e3
-        return b["power_W"] + 30.0 * abs(b["climb_m_s"]) + 6.0 * abs(b["accel_m_s2"])
+        return (b["power_W"] + args.climb_weight * abs(b["climb_m_s"])
+                + args.trim_weight * abs(b["accel_m_s2"]))
 
     t0 = time.perf_counter()
-    res = differential_evolution(cost, [(k[3], k[4]) for k in KNOBS], maxiter=args.maxiter,
+    res = differential_evolution(cost, bounds, maxiter=args.maxiter,
                                  popsize=args.popsize, seed=args.seed, polish=False, tol=1e-4)
     best = wingbeat(res.x, lo, hi, fl.ref, bias)
     bal = wingbeat_balance(fl, best, args.wingbeats, args.skip, args.speed)
@@ -106,7 +135,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     bins = budget["drag_feathers_by_aoa_W"]
     steep = (bins["30-45"] + bins["45-60"]) / max(budget["drag_feathers_W"], 1e-12)
     out = {"table": args.table, "induced": args.induced, "cruise": args.cruise,
-           "speed_m_s": args.speed,
+           "speed_m_s": args.speed, "climb_weight": args.climb_weight,
+           "trim_weight": args.trim_weight,
+           "bounds": {k[0]: list(b) for k, b in zip(KNOBS, bounds, strict=True)},
            "knobs": {k[0]: float(v) for k, v in zip(KNOBS, res.x, strict=True)},
            "cost": float(res.fun), "evaluations": evals[0],
            "wall_s": time.perf_counter() - t0, "balance": bal, "budget": budget,

@@ -633,7 +633,10 @@ class SurfaceForces(CompiledProvider):
     def _hinge_arrays(self, model: mujoco.MjModel, data: mujoco.MjData) -> list[np.ndarray]:
         """The hinges' arrays (:mod:`flapsim.fluid.hinges`) for one (model, data): their
         scratch is per registration, the timestep the model's own (a coarser copy, say)."""
-        induced = [self._pgroup, self._gint, self._gflt, self._gacc]
+        # the groups' force sums are scratch of each registration too: a flight and its copy
+        # stepped in two threads (the learned controller's look-ahead) would otherwise sum
+        # into one array, each seeing part of the other's lift in its downwash
+        induced = [self._pgroup, self._gint, self._gflt, np.zeros_like(self._gacc)]
         if self._hint.size == 0 and self._gflt.size == 0:
             return [self._phinge, self._hint, self._hflt, *[np.zeros(0)] * 8,
                     *[np.zeros(0, dtype=np.int64)] * 3, *[np.zeros(0)] * 5, *induced]

@@ -218,7 +218,7 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
     for f in forces:
         task = Task(paths.straight(40.0 if opt.quick else 60.0),
                     pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M,
-                    feathers=opt.feathers)
+                    feathers=opt.feathers, speed=database_speed(opt.db, opt.feathers))
         r = _fly_task(task, opt, record=bool(opt.video_dir))
         files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
         sim += r.metrics["simulated_s"]
@@ -258,7 +258,7 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     for i, off in enumerate(offsets):
         path = leader if i == 0 else paths.perturbed_copy(leader, off, p["jitter_m"], rng,
                                                           horizontal=True)
-        task = Task(path, feathers=opt.feathers)
+        task = Task(path, feathers=opt.feathers, speed=database_speed(opt.db, opt.feathers))
         r = _fly_task(task, opt, record=True)
         results.append(r)
         tracks.append(_track(r))
@@ -333,7 +333,8 @@ def run_forest(sc: Scenario, opt: EvalOptions) -> dict:
     if opt.quick:  # its first ~60 m
         path = FlightPath(path.points[:5])
     forest = make_forest(path, opt.seed)
-    task = Task(path, forest=forest, feathers=opt.feathers)
+    task = Task(path, forest=forest, feathers=opt.feathers,
+                speed=database_speed(opt.db, opt.feathers))
     r, files = _fly(sc, opt, task)
     return _result(r, files, trees=len(forest.trees))
 

@@ -641,3 +641,37 @@ def test_an_interrupted_table1_says_its_samples_are_kept(tmp_path):
     (tmp_path / "dbs" / "phase1_100.db").write_bytes(b"")
     assert resume_hint(args) == (f"; the samples trained so far are kept in {tmp_path / 'dbs'}: "
                                  "run the same command again to resume")
+
+
+def test_every_flight_scenario_flies_at_its_databases_speed(monkeypatch):
+    """A database describes the bird at the speed its pre-states were drawn around: a cruise
+    database sampled at 8.5 m/s flown at 7 sinks on every path (its wingbeats cannot hold a
+    slower bird up), so every scenario without a speed of its own (the pushes, the forest and
+    the flock as much as the paths) asks that speed."""
+    import contextlib
+
+    import flapsim.scenarios.flight as flight_scenarios
+    from flapsim.bird.control.controller import bundled_database_path
+    from flapsim.bird.control.database import read_header
+
+    db = bundled_database_path("cruise")
+    sampled_at = float(read_header(db)["config"]["cruise_speed"])  # the header, as written
+    assert sampled_at != 7.0  # else this test could not tell the database's speed from the default
+
+    class Flown(Exception):
+        pass
+
+    seen: dict[str, float] = {}
+
+    def record(task, opt, record):
+        seen[name] = task.speed
+        raise Flown
+
+    monkeypatch.setattr(flight_scenarios, "_fly_task", record)
+    for name in scenarios.names(family="flight"):
+        sc = scenarios.get(name)
+        if sc.params.get("shape") == "file":
+            continue  # a user's path: needs --path
+        with contextlib.suppress(Flown):
+            scenarios.run_scenario(name, scenarios.EvalOptions(db=str(db), quick=True))
+        assert seen.get(name) == sc.params.get("speed", sampled_at), name

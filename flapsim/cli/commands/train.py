@@ -101,6 +101,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: the cruise dove (a bird wing's section, its induced flow, the "
                         "cruise capture, its tail bias and 8.5 m/s; docs/flight.md); options given "
                         "beside it win")
+    p.add_argument("--induced", action="store_true", default=None,
+                   help="phase 1: the wings see the air their own lift pushes down (rigid "
+                        "feathers; --cruise sets it)")
     p.add_argument("--tail-bias-deg", type=float, default=None,
                    help="phase 1: tail bend added to the reference wingbeat, deg (default 17, the "
                         "paper's)")
@@ -188,8 +191,9 @@ def validate(args: argparse.Namespace) -> None:
         raise InputError("--feathers is for phase 1; phase 2 flies the dove of its --from database")
     if args.phase == 2 and (getattr(args, "table", None) or getattr(args, "tail_bias_deg", None) is not None
                             or getattr(args, "twist_bias_deg", None) is not None
-                            or getattr(args, "cruise", False)):
-        raise InputError("--table, --tail-bias-deg, --twist-bias-deg and --cruise are for phase 1; "
+                            or getattr(args, "cruise", False) or getattr(args, "induced", None)):
+        raise InputError("--table, --tail-bias-deg, --twist-bias-deg, --induced and --cruise are "
+                         "for phase 1; "
                          "phase 2 keeps its --from database's")
     if args.phase == 2:
         if args.from_db is None:
@@ -257,6 +261,11 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
         kwargs["twist_bias_deg"] = float(args.twist_bias_deg)
     if getattr(args, "tail_bias_deg", None) is not None:
         kwargs["tail_bias_deg"] = float(args.tail_bias_deg)
+    if getattr(args, "induced", None):
+        if kwargs.get("feathers", "rigid") != "rigid":
+            raise InputError("--induced needs rigid feathers (modal ones do not see the induced "
+                             "flow yet): drop --feathers modal")
+        kwargs["induced"] = True
     config = SamplingConfig(**kwargs)
     config.validate()  # here, one line: in a worker it would only kill the pool
     return config, SampleWorker

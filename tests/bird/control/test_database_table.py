@@ -58,7 +58,10 @@ def test_tasks_fly_with_the_databases_table(revolving_db):
     (["--samples", "10", "--tail-bias-deg", "45"], "--tail-bias-deg must be within -40..40"),
     (["--samples", "10", "--twist-bias-deg", "45"], "--twist-bias-deg must be within -30..30"),
     (["--samples", "10", "--phase", "2", "--from", "x.db", "--table", "dove_revolving"],
-     "--table, --tail-bias-deg, --twist-bias-deg and --cruise are for phase 1"),
+     "--table, --tail-bias-deg, --twist-bias-deg, --induced and --cruise are for phase 1"),
+    (["--samples", "10", "--phase", "2", "--from", "x.db", "--induced"],
+     "--table, --tail-bias-deg, --twist-bias-deg, --induced and --cruise are for phase 1"),
+    (["--samples", "10", "--induced", "--feathers", "modal"], "--induced needs rigid feathers"),
     (["--merge", "a.db", "b.db", "--table", "dove_revolving"], "--table is for training"),
 ])
 def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
@@ -68,6 +71,22 @@ def test_train_table_options_bad_values(capsys, tmp_path, args, fragment):
     err = capsys.readouterr().err.strip()
     assert code == 2 and fragment in err and "\n" not in err, err
     assert not (tmp_path / "out.db").exists()
+
+
+def test_train_induced_samples_the_dove_that_sees_its_downwash():
+    from flapsim.cli.commands.train import phase1
+    from flapsim.cli.main import build_parser
+
+    def config(*extra):
+        args = build_parser().parse_args(["train", "--samples", "10", "--out", "x.db", *extra])
+        return phase1(args)[0]
+
+    # the paper's dove, the same dove with its induced flow, and the cruise dove (which has it)
+    assert (config().induced, config("--induced").induced, config("--cruise").induced) == (
+        False, True, True)
+    # nothing else changes with it: the capture, table and speed stay the paper's
+    assert (config("--induced").capture_preset, config("--induced").cruise_speed) == (
+        config().capture_preset, config().cruise_speed)
 
 
 def test_twist_bias_moves_only_the_shoulder_twists():

@@ -2,6 +2,7 @@
 flight must be the same to the bit, a look-ahead taken only for exactly its own request, and
 the callback table never rewritten under a stepping thread."""
 
+import dataclasses
 import threading
 import time
 from concurrent import futures
@@ -12,7 +13,7 @@ import pytest
 
 from flapsim.bird.body.model import Dove
 from flapsim.bird.control import controller as C
-from flapsim.bird.control.lookahead import ReferenceLookahead
+from flapsim.bird.control.lookahead import ReferenceLookahead, _fly_frozen
 from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight
@@ -196,3 +197,38 @@ def test_closing_the_flight_waits_for_a_running_lookahead():
     fl.close()  # the look-ahead's close runs first: its wingbeat ends before the forces go
     assert fut.done()
     assert la._pool is None
+
+
+def test_a_copy_stepped_in_another_thread_sums_its_own_induced_flow():
+    # the induced flow sums each wing's force into scratch before turning it into downwash:
+    # a flight and its copy stepping at once in two threads must each sum only their own
+    # (a shared sum gave each part of the other's lift: flights under the look-ahead
+    # differed from run to run)
+    from flapsim.bird.flight.dove_flight import CRUISE
+    from flapsim.bird.flight.wingbeat import p0, with_tail_bias
+
+    fl = DoveFlight(Dove.load(induced=True), table=CRUISE.table)
+    try:
+        P = with_tail_bias(p0(), CRUISE.tail_bias_deg)
+        fl.reset(dataclasses.replace(CRUISE, speed=8.5), P)
+        snap_a = cycle.snapshot(fl)
+        fl.reset(dataclasses.replace(CRUISE, speed=6.0, pitch_deg=25.0), P)
+        snap_b = cycle.snapshot(fl)
+        twin = fl.twin(None)
+        # apart first: each its own end, one after the other
+        alone_a = cycle.fly_cycle(fl, snap_a, P, fl.ref).snapshot.physics
+        alone_b = cycle.fly_cycle(twin, snap_b, P, fl.ref).snapshot.physics
+        assert not np.array_equal(alone_a, alone_b)  # two different flights, or the test is blind
+        with futures.ThreadPoolExecutor(max_workers=1) as pool:
+            for _ in range(3):  # two cores step both at once; three tries, each a wingbeat long
+                fut = pool.submit(_fly_frozen, twin, snap_b, P, fl.ref)
+                a = cycle.fly_cycle(fl, snap_a, P, fl.ref).snapshot.physics
+                np.testing.assert_array_equal(fut.result().snapshot.physics, alone_b)
+                np.testing.assert_array_equal(a, alone_a)
+    finally:
+        fl.close()
+    # and where the cores are too busy to overlap the threads: each registration's scratch
+    # is its own array
+    forces = fl.aero
+    d1, d2 = mujoco.MjData(fl.model), mujoco.MjData(fl.model)
+    assert forces.arrays(fl.model, d1)[-1] is not forces.arrays(fl.model, d2)[-1]
