@@ -52,6 +52,12 @@ log = logging.getLogger(__name__)
 
 DEFAULT_CHUNK_SIZE = 16
 
+#: Below this share of draws kept, after :data:`LOW_ACCEPTANCE_AFTER` draws of this run, the run
+#: says once how long it is set to take and why: a wingbeat drawn around at a joint range keeps
+#: only a few draws in a thousand (one sample a second on two cores, ten thousand in hours).
+LOW_ACCEPTANCE = 0.02
+LOW_ACCEPTANCE_AFTER = 1000
+
 #: journal header entry: the samples the run that started it asked for (a resume that asks
 #: for fewer would drop what the journal holds); not kept in the finished database
 ASKED = "samples_asked"
@@ -277,6 +283,25 @@ def _check_journal(old: dict, header: dict, out: Path) -> None:
                          "another --out")
 
 
+def low_acceptance_warning(accepted: int, examined: int, n_samples: int,
+                           reasons: dict[str, int] | None = None) -> str | None:
+    """The one-line warning for a run that keeps under :data:`LOW_ACCEPTANCE` of its draws
+    (after at least :data:`LOW_ACCEPTANCE_AFTER`), or None: how many draws ``n_samples``
+    then need and the likely fix."""
+    if examined < LOW_ACCEPTANCE_AFTER or accepted >= LOW_ACCEPTANCE * examined:
+        return None
+    share = accepted / examined
+    need = f"about {n_samples / share:,.0f} draws" if accepted else "no end in sight"
+    why = ""
+    if reasons:
+        top = max(reasons, key=reasons.get)
+        why = f", most rejected as {top} ({reasons[top]})"
+    return (f"only {accepted} of {examined} draws kept so far ({100 * share:.1f} %{why}): "
+            f"{n_samples} samples need {need}; the wingbeats drawn leave the joint ranges: draw "
+            "around a wingbeat further inside them (--centre-wingbeat, --tail-bias-deg, "
+            "--twist-bias-deg) or with a smaller --sigma")
+
+
 def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int, backend: str,
          address: str | None, chunk_size: int, progress: bool, ident: dict, existing: Any,
          done: dict[int, tuple[int, int]], prefix: _Prefix, float32: bool) -> tuple[float, Any]:
@@ -335,6 +360,8 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
                                        unit="sample", desc=f"training {out.name}",
                                        disable=not progress, smoothing=0.1))
         shown = bar.n
+        # judged on this run's draws only: a resumed run's earlier ones are not re-drawn
+        run_accepted, run_examined, reasons, warned = 0, 0, {}, False
         while True:
             if prefix.total() >= n_samples:
                 break
@@ -370,6 +397,17 @@ def _run(config: Any, out: Path, n_samples: int, worker_cls: type, workers: int,
             done[k] = (m, chunk_size)
             accepted += m
             examined += chunk_size
+            run_accepted += m
+            run_examined += chunk_size
+            for why, n in (res.rejected or {}).items():
+                reasons[why] = reasons.get(why, 0) + int(n)
+            if not warned:
+                message = low_acceptance_warning(run_accepted, run_examined, n_samples, reasons)
+                if message is not None:
+                    warned = True
+                    bar.clear()  # the warning on a line of its own, the bar redrawn below it
+                    log.warning("%s", message)
+                    bar.refresh()
             total = min(prefix.total(), n_samples)
             if total > shown:
                 bar.update(total - shown)

@@ -306,3 +306,30 @@ def test_the_bundled_database_is_recognised_as_its_documented_run():
     assert is_bundled_run(config, 10000)
     assert not is_bundled_run(SamplingConfig(seed=bundled_seed() + 1, pitch_deg=10.0,
                                              roll_deg=10.0, feathers="rigid"), 10000)
+
+
+def test_the_low_acceptance_warning_says_how_many_draws_the_run_needs():
+    from flapsim.bird.training.train import LOW_ACCEPTANCE_AFTER, low_acceptance_warning
+
+    # 10 of 2,000 kept is 0.5 %: 10,000 samples need 10,000 / 0.005 = 2,000,000 draws
+    msg = low_acceptance_warning(10, 2000, 10000, {"left_range": 1900, "diverged": 90})
+    assert "0.5 %" in msg and "2,000,000 draws" in msg and "left_range (1900)" in msg
+    assert "\n" not in msg
+    assert low_acceptance_warning(100, 2000, 10000) is None  # 5 %: a slow run, not a stuck one
+    assert low_acceptance_warning(0, LOW_ACCEPTANCE_AFTER - 1, 10) is None  # too few to judge
+    assert "no end in sight" in low_acceptance_warning(0, LOW_ACCEPTANCE_AFTER, 10)
+
+
+def test_a_run_that_keeps_no_draw_says_so_once_while_it_runs(tmp_path, caplog):
+    import logging
+
+    from flapsim.bird.training.train import LOW_ACCEPTANCE_AFTER
+
+    # every index rejected ("every7" with reject_every 1); the run ends by a failure well after
+    # the warning is due, or it would draw for ever
+    cfg = FakeConfig(reject_every=1, fail_at=LOW_ACCEPTANCE_AFTER + 200)
+    with caplog.at_level(logging.WARNING, logger="flapsim.bird.training.train"), \
+            pytest.raises(Exception, match="fake failure"):
+        train(cfg, tmp_path / "stuck.db", 10, FakeWorker, workers=1, progress=False)
+    warned = [r.getMessage() for r in caplog.records if "draws kept so far" in r.getMessage()]
+    assert len(warned) == 1 and "every7" in warned[0] and "no end in sight" in warned[0]
