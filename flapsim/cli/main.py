@@ -115,6 +115,17 @@ def _route_mujoco_warnings() -> None:
     mujoco.set_mju_user_warning(warn)
 
 
+def _stopped(args: argparse.Namespace, by: type[BaseException]) -> int:
+    """The one line and exit status of a command stopped by SIGINT (130) or SIGTERM (143),
+    with the command's hint on how to resume."""
+    hint = args._module.resume_hint(args) if hasattr(args._module, "resume_hint") else ""
+    if by is KeyboardInterrupt:
+        print(f"flapsim {args.command}: interrupted{hint}", file=sys.stderr)
+        return 130
+    print(f"flapsim {args.command}: terminated (SIGTERM){hint}", file=sys.stderr)
+    return 143
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     guard_gl()  # also done on importing flapsim.cli, before mujoco: see flapsim/cli/__init__.py
     parser = build_parser()
@@ -166,17 +177,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flapsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        hint = args._module.resume_hint(args) if hasattr(args._module, "resume_hint") else ""
-        print(f"flapsim {args.command}: interrupted{hint}", file=sys.stderr)
-        return 130
+        return _stopped(args, KeyboardInterrupt)
     except Terminated:
-        hint = args._module.resume_hint(args) if hasattr(args._module, "resume_hint") else ""
-        print(f"flapsim {args.command}: terminated (SIGTERM){hint}", file=sys.stderr)
-        return 143
-    except OSError as exc:  # the system refused a read or write the checks could not foresee
-        what = f"{exc.strerror or exc}" + (f": {exc.filename}" if exc.filename else "")
-        print(f"flapsim {args.command}: error: {what}", file=sys.stderr)
-        return 1
+        return _stopped(args, Terminated)
+    except Exception as exc:
+        # a signal raised inside a C call that turned it into an error of its own (SIGTERM in
+        # the EGL context's ctypes call while a video renders: ctypes.ArgumentError
+        # "argument 1: Terminated"): the signal it recorded says what stopped the command
+        signalled = interrupts.pending()
+        if signalled in (KeyboardInterrupt, Terminated):
+            return _stopped(args, signalled)
+        if isinstance(exc, OSError):  # the system refused a read or write the checks could not foresee
+            what = f"{exc.strerror or exc}" + (f": {exc.filename}" if exc.filename else "")
+            print(f"flapsim {args.command}: error: {what}", file=sys.stderr)
+            return 1
+        raise
     finally:
         for sig, old in handlers.items():
             # None: the handler was set outside Python; Python's defaults stand in for it

@@ -73,6 +73,14 @@ def check() -> None:
         raise exc()
 
 
+def pending() -> type[BaseException] | None:
+    """The recorded exception a signal asked for and nothing has raised since, if any (not
+    cleared). A signal raised inside a C call that converts it into an error of its own
+    (ctypes wraps an exception raised while it converts an argument in ``ArgumentError``)
+    leaves the signal recorded: the caller can tell the wrapped error for what it is."""
+    return _pending
+
+
 def clear() -> None:
     """Forget any recorded signal (a command's end)."""
     global _pending
