@@ -74,10 +74,11 @@ def check() -> None:
 
 
 def pending() -> type[BaseException] | None:
-    """The recorded exception a signal asked for and nothing has raised since, if any (not
-    cleared). A signal raised inside a C call that converts it into an error of its own
-    (ctypes wraps an exception raised while it converts an argument in ``ArgumentError``)
-    leaves the signal recorded: the caller can tell the wrapped error for what it is."""
+    """The exception a signal recorded since the command began and :func:`check` has not
+    raised since, if any (not cleared: the handler's own raise leaves it recorded). A signal
+    raised inside a C call that converts it into an error of its own (ctypes wraps an
+    exception raised while it converts an argument in ``ArgumentError``) leaves the signal
+    recorded: the caller can tell the wrapped error for what it is."""
     return _pending
 
 

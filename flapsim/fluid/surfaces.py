@@ -605,7 +605,6 @@ class SurfaceForces(CompiledProvider):
             self._pgroup = induced.polygon_group
             self._gint, self._gflt = induced.tables(model)
             integrator_damping(model)
-        self._gacc = np.zeros(3 * self._gflt.size)
 
     @property
     def induced_dofs(self) -> np.ndarray:
@@ -636,7 +635,7 @@ class SurfaceForces(CompiledProvider):
         # the groups' force sums are scratch of each registration too: a flight and its copy
         # stepped in two threads (the learned controller's look-ahead) would otherwise sum
         # into one array, each seeing part of the other's lift in its downwash
-        induced = [self._pgroup, self._gint, self._gflt, np.zeros_like(self._gacc)]
+        induced = [self._pgroup, self._gint, self._gflt, np.zeros(3 * self._gflt.size)]
         if self._hint.size == 0 and self._gflt.size == 0:
             return [self._phinge, self._hint, self._hflt, *[np.zeros(0)] * 8,
                     *[np.zeros(0, dtype=np.int64)] * 3, *[np.zeros(0)] * 5, *induced]

@@ -215,10 +215,11 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
     direction = sc.params["direction"]
     forces = (8.0,) if opt.quick else PUSH_FORCES_N
     table, files, worst, sim = [], [], None, 0.0
+    speed = database_speed(opt.db, opt.feathers)  # the database's header, read once
     for f in forces:
         task = Task(paths.straight(40.0 if opt.quick else 60.0),
                     pushes=(PushSpec(1.0, f, direction),), tube_m=PUSH_TUBE_M,
-                    feathers=opt.feathers, speed=database_speed(opt.db, opt.feathers))
+                    feathers=opt.feathers, speed=speed)
         r = _fly_task(task, opt, record=bool(opt.video_dir))
         files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
         sim += r.metrics["simulated_s"]
@@ -255,10 +256,11 @@ def run_flock(sc: Scenario, opt: EvalOptions) -> dict:
     birds = p["quick_birds"] if opt.quick else p["birds"]
     offsets = p["offsets"][:birds]
     results, files, tracks, tasks = [], [], [], []
+    speed = database_speed(opt.db, opt.feathers)  # the database's header, read once
     for i, off in enumerate(offsets):
         path = leader if i == 0 else paths.perturbed_copy(leader, off, p["jitter_m"], rng,
                                                           horizontal=True)
-        task = Task(path, feathers=opt.feathers, speed=database_speed(opt.db, opt.feathers))
+        task = Task(path, feathers=opt.feathers, speed=speed)
         r = _fly_task(task, opt, record=True)
         results.append(r)
         tracks.append(_track(r))

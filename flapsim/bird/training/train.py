@@ -297,8 +297,8 @@ def low_acceptance_warning(accepted: int, examined: int, n_samples: int,
         top = max(reasons, key=reasons.get)
         why = f", most rejected as {top} ({reasons[top]})"
     return (f"only {accepted} of {examined} draws kept so far ({100 * share:.1f} %{why}): "
-            f"{n_samples} samples need {need}; the wingbeats drawn leave the joint ranges: draw "
-            "around a wingbeat further inside them (--centre-wingbeat, --tail-bias-deg, "
+            f"{n_samples} samples need {need}; where the wingbeats drawn leave the joint ranges, "
+            "draw around a wingbeat further inside them (--centre-wingbeat, --tail-bias-deg, "
             "--twist-bias-deg) or with a smaller --sigma")
 
 
