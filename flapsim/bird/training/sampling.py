@@ -246,6 +246,13 @@ class SamplingConfig(StoredConfig):
     capture's ellipses then spread around it, and the samples' dP stay P0-relative, so such
     a database merges with one sampled around P0."""
 
+    reference_wingbeat: tuple = ()
+    """The 29 parameters of the reference wingbeat P0 itself (the biases included, as flown;
+    empty: the capture's mean cycle with ``tail_bias_deg`` and ``twist_bias_deg``). A gait the
+    capture does not hold, say a wingbeat trimmed for slow flight under a bird wing's section
+    (``studies/dove_trim_power.py`` writes one): the controller predicts S0 by flying it and
+    its samples' dP are offsets from it, so the trim it measures is that gait's."""
+
     capture_preset: str = "slow"
     """The bundled capture the examples and the reference wingbeat P0 come from: ``slow``
     (the paper's conditions) or ``cruise`` (:data:`~flapsim.bird.flight.capture.CAPTURE_FILES`)."""
@@ -255,6 +262,8 @@ class SamplingConfig(StoredConfig):
     def __post_init__(self) -> None:
         # JSON gives a list back: a tuple keeps the configuration frozen and comparable
         object.__setattr__(self, "centre_wingbeat", tuple(float(x) for x in self.centre_wingbeat))
+        object.__setattr__(self, "reference_wingbeat",
+                           tuple(float(x) for x in self.reference_wingbeat))
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -271,10 +280,11 @@ class SamplingConfig(StoredConfig):
         for k in ("centre_flap_scale", "centre_timewarp"):
             if d[k] == 1.0:
                 del d[k]  # likewise
-        if not d["centre_wingbeat"]:
-            del d["centre_wingbeat"]  # likewise
-        else:
-            d["centre_wingbeat"] = list(d["centre_wingbeat"])
+        for k in ("centre_wingbeat", "reference_wingbeat"):
+            if not d[k]:
+                del d[k]  # likewise
+            else:
+                d[k] = list(d[k])
         return d
 
     def validate(self) -> None:
@@ -315,6 +325,11 @@ class SamplingConfig(StoredConfig):
             if self.centre_flap_scale != 1.0 or self.centre_timewarp != 1.0:
                 raise InputError("--centre-wingbeat gives the whole centre: leave out "
                                  "--centre-flap-scale and --centre-timewarp")
+        if self.reference_wingbeat:
+            c = np.asarray(self.reference_wingbeat)
+            if c.shape != (N_PARAMS,) or not np.all(np.isfinite(c)) or not 0.5 <= c[-1] <= 2.0:
+                raise InputError(f"--reference-wingbeat must be {N_PARAMS} finite wingbeat "
+                                 f"parameters with a timewarp within 0.5..2, got {c.size} numbers")
 
 
 def sample_fields(S: np.ndarray, dP: np.ndarray, e0: cycle.CycleEnd, e1: cycle.CycleEnd
@@ -374,7 +389,7 @@ class SampleWorker:
         self.dove = Dove.load(feathers=config.feathers, induced=config.induced)
         self.flight = DoveFlight(self.dove, self.ref, config.table)
         self.lo, self.hi = cycle.model_dof_ranges(self.flight)
-        self.P0 = with_twist_bias(with_tail_bias(p0(), config.tail_bias_deg), config.twist_bias_deg)
+        self.P0 = reference_of(config)
         self.centre = sampling_centre(self.P0, config) - self.P0
         self.manifold = None
         if config.extrapolate > 0:
@@ -458,6 +473,14 @@ class SampleWorker:
 
     def run_chunk(self, start: int, stop: int) -> ChunkResult:
         return collect_chunk(self.sample, start, stop)
+
+
+def reference_of(config: SamplingConfig) -> np.ndarray:
+    """The reference wingbeat P0 of ``config``'s samples: ``reference_wingbeat`` when given,
+    else the capture's mean cycle with the tail and twist biases."""
+    if config.reference_wingbeat:
+        return np.asarray(config.reference_wingbeat, float)
+    return with_twist_bias(with_tail_bias(p0(), config.tail_bias_deg), config.twist_bias_deg)
 
 
 def sampling_centre(P0: np.ndarray, config: SamplingConfig) -> np.ndarray:

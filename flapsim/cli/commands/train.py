@@ -84,6 +84,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="phase 1: draw the wingbeats around this wingbeat instead of P0: a JSON "
                         "file with its 29 parameters under \"wingbeat\" (as "
                         "studies/dove_wingbeat_search.py writes them) or as a bare list")
+    p.add_argument("--reference-wingbeat", default=None, metavar="FILE",
+                   help="phase 1: the reference wingbeat P0 itself (biases included), in the "
+                        "same JSON as --centre-wingbeat: a gait the capture does not hold, "
+                        "such as a slow-flight wingbeat trimmed by studies/dove_trim_power.py; "
+                        "the controller then predicts with it and measures its trim")
     p.add_argument("--merge", nargs="+", default=None, metavar="DB",
                    help="instead of training: write the samples of these finished databases (of "
                         "the same dove and reference wingbeat) into one database --out, with "
@@ -182,9 +187,10 @@ def validate(args: argparse.Namespace) -> None:
             raise InputError(f"{flag} must be 0..{hi}, got {v}")
     if args.phase == 2 and any(getattr(args, k, None) is not None for k in (
             "pre_velocity", "pre_angvel", "pre_speed", "centre_flap_scale", "centre_timewarp",
-            "centre_wingbeat", "pre_pitch_centre_deg")):
+            "centre_wingbeat", "pre_pitch_centre_deg", "reference_wingbeat")):
         raise InputError("--pre-velocity, --pre-angvel, --pre-speed, --centre-flap-scale, "
-                         "--centre-timewarp and --centre-wingbeat are for phase 1; phase 2 keeps "
+                         "--centre-timewarp, --centre-wingbeat and --reference-wingbeat are for "
+                         "phase 1; phase 2 keeps "
                          "its --from database's pre-states and samples around its discovered "
                          "wingbeats")
     if args.phase == 2 and getattr(args, "feathers", "rigid") != "rigid":
@@ -205,24 +211,24 @@ def validate(args: argparse.Namespace) -> None:
             raise InputError("--from and --out name the same file; choose another --out")
 
 
-def read_centre_wingbeat(path: str) -> tuple[float, ...]:
-    """--centre-wingbeat's file: a JSON list of numbers, or an object with one under
-    ``wingbeat``; its length and values are checked with the rest of the configuration."""
+def read_centre_wingbeat(path: str, flag: str = "--centre-wingbeat") -> tuple[float, ...]:
+    """--centre-wingbeat's (or ``flag``'s) file: a JSON list of numbers, or an object with one
+    under ``wingbeat``; its length and values are checked with the rest of the configuration."""
 
     try:
         data = json.loads(Path(path).read_text())
     except FileNotFoundError:
-        raise InputError(f"--centre-wingbeat {path} does not exist") from None
+        raise InputError(f"{flag} {path} does not exist") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"--centre-wingbeat {path} is not a JSON file ({type(exc).__name__}): give "
+        raise InputError(f"{flag} {path} is not a JSON file ({type(exc).__name__}): give "
                          "the JSON that studies/dove_wingbeat_search.py writes") from None
     if isinstance(data, dict):
         data = data.get("wingbeat")
     if not isinstance(data, list) or not all(
             isinstance(x, (int, float)) and not isinstance(x, bool) for x in data):
-        raise InputError(f"--centre-wingbeat {path} holds no list of numbers (a list, or one "
+        raise InputError(f"{flag} {path} holds no list of numbers (a list, or one "
                          "under \"wingbeat\")")
-    require_finite(data, f"--centre-wingbeat {path}", "wingbeat")
+    require_finite(data, f"{flag} {path}", "wingbeat")
     return tuple(float(x) for x in data)
 
 
@@ -253,6 +259,15 @@ def phase1(args: argparse.Namespace) -> tuple[Any, type]:
             kwargs[key] = float(getattr(args, arg))
     if getattr(args, "centre_wingbeat", None) is not None:
         kwargs["centre_wingbeat"] = read_centre_wingbeat(args.centre_wingbeat)
+    if getattr(args, "reference_wingbeat", None) is not None:
+        if any(getattr(args, k, None) is not None for k in ("tail_bias_deg", "twist_bias_deg")):
+            raise InputError("--reference-wingbeat gives the whole reference, its biases included: "
+                             "leave out --tail-bias-deg and --twist-bias-deg")
+        if getattr(args, "cruise", False):
+            raise InputError("--reference-wingbeat replaces the capture's reference: leave out "
+                             "--cruise (give its table and --induced instead)")
+        kwargs["reference_wingbeat"] = read_centre_wingbeat(args.reference_wingbeat,
+                                                            "--reference-wingbeat")
     if getattr(args, "feathers", "rigid") != "rigid":
         kwargs["feathers"] = args.feathers
     if getattr(args, "table", None):
@@ -346,6 +361,7 @@ _NOT_FOR_MERGE = (("samples", None, "--samples"), ("phase", 1, "--phase"), ("sig
                   ("pre_speed", None, "--pre-speed"), ("centre_flap_scale", None, "--centre-flap-scale"),
                   ("centre_timewarp", None, "--centre-timewarp"),
                   ("centre_wingbeat", None, "--centre-wingbeat"),
+                  ("reference_wingbeat", None, "--reference-wingbeat"),
                   ("chunk_size", None, "--chunk-size"), ("feathers", "rigid", "--feathers"),
                   ("float32", False, "--float32"), ("table", None, "--table"),
                   ("tail_bias_deg", None, "--tail-bias-deg"), ("twist_bias_deg", None, "--twist-bias-deg"))

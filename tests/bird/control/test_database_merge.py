@@ -310,3 +310,56 @@ def test_centre_wingbeat_is_for_phase_1_training_only(capsys, tmp_path):
                          "--out", str(tmp_path / "m.db"))
         err = out.err.strip()
         assert code == 2 and fragment in err and "\n" not in err, err
+
+
+def test_a_reference_wingbeat_is_the_databases_p0_and_its_samples_centre(tmp_path):
+    """--reference-wingbeat FILE replaces P0 itself: the header's P0 (which the controller
+    predicts with and measures its trim from) is the file's wingbeat, the wingbeats drawn move
+    with it (the same random draw otherwise), and it survives the header's JSON."""
+    import argparse
+
+    from flapsim.bird.training.sampling import SampleWorker, SamplingConfig
+    from flapsim.cli.commands.train import phase1
+
+    d0 = SamplingConfig(seed=3, pitch_deg=10.0, roll_deg=10.0).to_dict()
+    assert "reference_wingbeat" not in d0  # the bundled database's configuration is unchanged
+    plain = SampleWorker(SamplingConfig(**d0))
+    offset = np.zeros(len(plain.P0))
+    offset[0], offset[1], offset[-1] = 0.05, np.radians(1.0), -0.02  # left flap scale, shift; beat
+    ref = plain.P0 + offset
+    (tmp_path / "r.json").write_text(json.dumps({"wingbeat": ref.tolist()}))
+    args = argparse.Namespace(seed=3, sigma=None, pre_pitch_deg=10.0, pre_roll_deg=10.0,
+                              reference_wingbeat=str(tmp_path / "r.json"), feathers="rigid")
+    cfg, _ = phase1(args)
+    d = cfg.to_dict()
+    assert d["reference_wingbeat"] == ref.tolist()
+    assert SamplingConfig.from_dict(json.loads(json.dumps(d))) == cfg
+    moved = SampleWorker(cfg)
+    try:
+        np.testing.assert_array_equal(moved.header()["P0"], ref)
+        np.testing.assert_array_equal(moved.centre, np.zeros(len(ref)))  # drawn around itself
+        # dP is P0-relative: the same draws as around the capture's P0, so every wingbeat
+        # flown (P0 + dP) is the plain one's moved by the reference's offset
+        offsets = _draw_offsets(plain, moved)
+        assert len(offsets) >= 10
+        np.testing.assert_allclose(offsets, np.zeros((len(offsets), len(ref))), atol=1e-12)
+    finally:
+        plain.close()
+        moved.close()
+
+
+@pytest.mark.parametrize("extra, fragment", [
+    (["--tail-bias-deg", "20"], "leave out --tail-bias-deg"),
+    (["--cruise"], "leave out --cruise"),
+    (["--phase", "2", "--from", "a.db"], "are for phase 1"),
+])
+def test_a_reference_wingbeat_with_what_it_replaces_is_one_line(capsys, tmp_path, monkeypatch,
+                                                               extra, fragment):
+    monkeypatch.chdir(tmp_path)
+    _db(tmp_path / "a.db", 3, 1)
+    (tmp_path / "r.json").write_text(json.dumps([1.0] * 29))
+    code, out = _cli(capsys, "--samples", "4", "--reference-wingbeat", "r.json", *extra,
+                     "--out", str(tmp_path / "x.db"))
+    err = out.err.strip()
+    assert code == 2 and fragment in err and "\n" not in err, err
+    assert not (tmp_path / "x.db").exists()
