@@ -408,6 +408,7 @@ def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
         assert (c.k_dense_share, c.carry, c.refine, t.bank_lead_s, t.aoa_per_g_deg, p.speed,
                 t.turn_load_factor, t.climb_per_speed_deficit) == (0.0, 0.0, 0, 0.0, 0.0, None,
                                                                     0.0, 0.0)
+        assert c.reference_hz == 0.0  # S0 at the flight's own rate
         # the dove's own bank cap
         assert t.max_bank_deg == PathControlConfig.for_dove(o.feathers).max_bank_deg
     # what the protocol does not fix stays as asked
