@@ -94,7 +94,7 @@ def wave_coefficient(v, length, c_hump, g):
     return c_hump * fr * fr * fr * fr
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract", "arcp", "afn", "nsz"})
 def wave_kernel(w, xpos, xmat, cvel, scom, rootid, pbody, pc, pn, parea, pext, flow, params,
                 tnow, ext_flow, rec):
     """Add every wetted polygon's wave resistance to the wrench accumulator ``w``;
