@@ -38,6 +38,7 @@ from flapsim.bird.control.controller import (
     make_lookahead,
     start_cruise,
 )
+from flapsim.bird.control.prediction import CoarsePredictor
 from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, fly
@@ -212,13 +213,12 @@ def run_train(args: argparse.Namespace) -> dict:
 
 def run_controller(args: argparse.Namespace) -> dict:
     """``flapsim bench controller [--feathers modal]``: the learned controller's cruise in
-    real-time factor (S0
-    simulated every wingbeat, the default, ``predict="coarse"`` and ``predict="regression"``;
-    with 0, 1 and 2 simulated corrections per wingbeat),
-    what a controlled wingbeat costs against a base wingbeat (the P0 prediction, the regression
-    and the flown wingbeat), and each against a bare ``mujoco.rollout`` of P0 (the floor: no controller, no
-    Python), all in the same run."""
-
+    real-time factor: the default (for the rigid dove S0 simulated on a 1600 Hz copy and the
+    corrections stopped at the first candidate near enough), without the stop, with S0 on the
+    flight and every correction simulated (alone and with the look-ahead on a second core),
+    ``predict="coarse"`` and ``predict="regression"``, and with 0, 1 and 2 corrections; what a
+    controlled wingbeat costs against a base wingbeat; and each against a bare
+    ``mujoco.rollout`` of P0 (the floor: no controller, no Python), all in the same run."""
 
     n = max(4, int(getattr(args, "wingbeats", None) or 20))
     db = getattr(args, "db", None)
@@ -229,18 +229,22 @@ def run_controller(args: argparse.Namespace) -> dict:
         ctl = load_controller(fl, db)
         coarse = load_controller(fl, db, predict="coarse")
         reg = attach_predictor(load_controller(fl, db), db)
-        # the same regression (one database load), 0, 1 and 2 corrections
+        # the same regression (one database load), 0, 1 and 2 corrections, and the default's
+        # corrections without the stop (every one simulated)
         refined = [(f"learned_refine{r}", dataclasses.replace(ctl, refine=r)) for r in (0, 1, 2)]
-        # the next wingbeat's reference simulated on a second core: the same flight, sooner. It
-        # runs beside the simulated corrections: with one where the dove's default has none
-        # (the modal dove), compared with the flight of the same corrections
+        refined.append(("learned_no_stop", dataclasses.replace(ctl, refine_stop=0.0)))
+        # the paper's S0 (simulated on the flight at its own rate) and every correction
+        # simulated (at least one: the look-ahead runs beside them)
         ahead_refine = max(ctl.refine, 1)
-        ahead = dataclasses.replace(ctl, refine=ahead_refine,
-                                    lookahead=make_lookahead(fl, "on", ahead_refine, "simulate"))
+        every = dataclasses.replace(ctl, predictor=None, refine=ahead_refine, refine_stop=0.0,
+                                    _predict="simulate")
+        # with the next wingbeat's reference simulated on a second core: the same flight, sooner
+        ahead = dataclasses.replace(every, lookahead=make_lookahead(fl, "on", ahead_refine, "simulate"))
         flown, per_wingbeat = {}, {}
         trim = trim_of_base_flight(fl, ctl.P0)
         res = {}
-        for name, c in (("learned", ctl), ("learned_lookahead", ahead), ("learned_coarse", coarse),
+        for name, c in (("learned", ctl), ("learned_every_correction", every),
+                        ("learned_lookahead", ahead), ("learned_coarse", coarse),
                         ("learned_regression", reg), *refined, ("base", BaseController(fl, ctl.P0))):
             start_cruise(fl, ctl.P0)
             fly_controlled(c, CruiseTarget(trim, altitude=10.0), 1)  # warm-up: the coarse twin
@@ -249,10 +253,13 @@ def run_controller(args: argparse.Namespace) -> dict:
                 c.reset()  # the same start for every variant: their flights compare to the bit
             f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
             flown[name] = f.positions
-            # whole wingbeats simulated per wingbeat flown: the reference (where simulated:
-            # the look-ahead's on its own core) and every candidate (the flown one among them)
+            # wingbeats' worth of steps simulated per wingbeat flown: the reference (where
+            # simulated: the look-ahead's on its own core; on a coarser copy, its share of the
+            # flight's steps) and every candidate (the flown one among them)
+            pr = getattr(c, "predictor", None)
+            ref_cost = pr.rate_hz * float(fl.model.opt.timestep) if isinstance(pr, CoarsePredictor) else 1.0
             per_wingbeat[name] = float(np.mean([
-                s.simulated + (s.reference is not s.end and not s.reference.predicted)
+                s.simulated + ref_cost * (s.reference is not s.end and not s.reference.predicted)
                 for s in f.steps]))
             res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
                          "real_time_factor": f.simulated_s / f.wall_time}
@@ -276,7 +283,7 @@ def run_controller(args: argparse.Namespace) -> dict:
     finally:
         fl.close()
     bare = res["bare_rollout"]["real_time_factor"]
-    twin = "learned" if ahead_refine == ctl.refine else f"learned_refine{ahead_refine}"
+    twin = "learned_every_correction"
     lookahead_same = bool(np.array_equal(flown[twin], flown["learned_lookahead"]))
     out = {
         "target": "controller",
@@ -294,6 +301,12 @@ def run_controller(args: argparse.Namespace) -> dict:
         "real_time_factor_coarse": res["learned_coarse"]["real_time_factor"],
         "real_time_factor_regression": res["learned_regression"]["real_time_factor"],
         "refine": ctl.refine,
+        "refine_stop": ctl.refine_stop,
+        "timestep": float(m.opt.timestep),
+        "reference_hz": (ctl.predictor.rate_hz if isinstance(ctl.predictor, CoarsePredictor)
+                         else 1.0 / float(m.opt.timestep)),
+        "real_time_factor_no_stop": res["learned_no_stop"]["real_time_factor"],
+        "real_time_factor_every_correction": res[twin]["real_time_factor"],
         "real_time_factor_refine": {r: res[f"learned_refine{r}"]["real_time_factor"] for r in (0, 1, 2)},
         "cost_over_base": res["base"]["real_time_factor"] / res["learned"]["real_time_factor"],
         "over_bare_rollout": {k: v["real_time_factor"] / bare for k, v in res.items()},
@@ -309,22 +322,28 @@ def run_controller(args: argparse.Namespace) -> dict:
           f"{out['database_samples']} samples): "
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
-    print(f"  lookahead on (the next reference on a second core): {out['real_time_factor_lookahead']:.1f}x "
-          f"real time, {out['lookahead_speedup']:.2f}x without it ({ahead_refine} corrections), "
+    print(f"  S0 at the flight's rate and every correction simulated ({ahead_refine}): "
+          f"{out['real_time_factor_every_correction']:.1f}x real time; with the look-ahead (the next "
+          f"reference on a second core) {out['real_time_factor_lookahead']:.1f}x, "
+          f"{out['lookahead_speedup']:.2f}x without it, "
           f"{'the same flight to the bit' if lookahead_same else 'A DIFFERENT FLIGHT (a bug)'}")
     print(f"  --predict coarse: {out['real_time_factor_coarse']:.1f}x real time; --predict regression: "
           f"{out['real_time_factor_regression']:.1f}x")
     rf = out["real_time_factor_refine"]
-    print(f"  refine 0 / 1 / 2 (default {ctl.refine}): {rf[0]:.1f}x / {rf[1]:.1f}x / "
-          f"{rf[2]:.1f}x real time")
+    print(f"  refine 0 / 1 / 2 (default {ctl.refine}, stopping within {ctl.refine_stop:g}): "
+          f"{rf[0]:.1f}x / {rf[1]:.1f}x / {rf[2]:.1f}x real time; every correction simulated "
+          f"(no stop) {out['real_time_factor_no_stop']:.1f}x")
     print(f"  against a bare rollout of the reference wingbeat ({bare:.1f}x real time): learned "
-          f"{r['learned']:.2f} on one thread, {r['learned_lookahead']:.2f} on two (look-ahead), "
+          f"{r['learned']:.2f} on one thread (every correction, S0 at the flight's rate: "
+          f"{r['learned_every_correction']:.2f}; on two with the look-ahead {r['learned_lookahead']:.2f}), "
           f"--predict coarse {r['learned_coarse']:.2f}, --predict regression "
           f"{r['learned_regression']:.2f}, "
           f"base {r['base']:.2f}")
     w = per_wingbeat["learned"]
-    print(f"  the learned controller simulates {w:.2f} wingbeats per wingbeat flown, each waiting "
-          f"for the one before: at most {1 / w:.2f} of a bare rollout on one thread")
+    print(f"  the learned controller simulates {w:.2f} wingbeats' worth of steps per wingbeat "
+          f"flown (S0 at {out['reference_hz']:.0f} Hz, corrections stopped within "
+          f"{ctl.refine_stop:g}), each waiting for the one before: at most {1 / w:.2f} of a bare "
+          f"rollout on one thread")
     return out
 
 

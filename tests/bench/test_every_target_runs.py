@@ -85,12 +85,20 @@ def _check_controller(r: dict) -> None:
     m = r["measurements"]
     assert r["cost_over_base"] == pytest.approx(
         m["base"]["real_time_factor"] / m["learned"]["real_time_factor"], rel=REL)
-    # the look-ahead against the flight with the same corrections without it (a modal dove's
-    # default has none, the look-ahead needs one): the same flight, to the bit
-    twin = "learned" if r["lookahead_refine"] == r["refine"] else f"learned_refine{r['lookahead_refine']}"
+    # the look-ahead against the flight with the same corrections without it (S0 on the flight
+    # at its own rate, every correction simulated; at least one: a modal dove's default has
+    # none, the look-ahead needs one): the same flight, to the bit
+    twin = "learned_every_correction"
     assert r["lookahead_speedup"] == pytest.approx(
         m["learned_lookahead"]["real_time_factor"] / m[twin]["real_time_factor"], rel=REL)
-    assert r["lookahead_same_flight"] is True
+    # the wingbeats simulated per wingbeat flown: every correction is refine + 1 candidates and
+    # a whole reference; the default simulates its reference (on a coarser copy: that share of
+    # the flight's steps) and one to refine + 1 candidates
+    per = r["wingbeats_simulated_per_flown"]
+    share = r["reference_hz"] * r["timestep"]
+    assert 0.5 <= share <= 1.0 + 1e-9
+    assert per[twin] == pytest.approx(r["lookahead_refine"] + 2, abs=1e-12)
+    assert 1.0 + share - 1e-9 <= per["learned"] <= r["refine"] + 1 + share + 1e-9
     for k, v in r["over_bare_rollout"].items():
         assert v == pytest.approx(m[k]["real_time_factor"] / m["bare_rollout"]["real_time_factor"],
                                   rel=REL)

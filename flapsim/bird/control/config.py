@@ -50,6 +50,23 @@ DEFAULT_CARRY = {"rigid": 0.4, "modal": 0.0}
 #: speed).
 DEFAULT_REFINE = {"rigid": 2, "modal": 0}
 
+#: :attr:`ControllerConfig.refine_stop` by dove (docs/design/flight.md, "The corrections stop
+#: at the first answer near enough"): in cruise the first answer ends 0.03-0.08 from the target
+#: and the corrections gain little, so a cruising wingbeat simulates one candidate instead of
+#: three; the flight suite's verdicts are those of every correction simulated (0.1 lost the 12 N
+#: push from the front). The modal dove has no corrections.
+DEFAULT_REFINE_STOP = {"rigid": 0.09, "modal": 0.0}
+
+#: :attr:`ControllerConfig.reference_hz` by dove (docs/design/flight.md, "S0 simulated at
+#: 1600 Hz"): the rigid dove's reference wingbeat costs 2/3 of a wingbeat's steps, its S0 off
+#: by 1-3 % of the database's spread, the suite's verdicts unchanged; the modal dove's was not
+#: measured under its defaults and keeps its flight's rate.
+DEFAULT_REFERENCE_HZ = {"rigid": 1600.0, "modal": 0.0}
+
+#: The lowest :attr:`ControllerConfig.reference_hz`, the lowest measured: there S0 misses by
+#: 5-10x more than at 1600 Hz and the rising figure of eight is lost (docs/design/flight.md).
+MIN_REFERENCE_HZ = 1200.0
+
 #: :attr:`ControllerConfig.refine_goal` by dove. ``reachable`` was measured on the rigid dove
 #: and not made its default (docs/design/flight.md, "Corrections aimed at what a wingbeat can
 #: reach: not kept": 17 of the 22 scenarios as ``full``, but 8 N rather than 10 N pushes from
@@ -74,10 +91,17 @@ class ControllerConfig:
     refine_goal: str = DEFAULT_REFINE_GOAL["rigid"]
     """What the corrections aim at and rank by: "full", the target itself, or "reachable", the
     target clipped as clip_request clips the request (measured in docs/flight.md)."""
+    refine_stop: float = DEFAULT_REFINE_STOP["rigid"]
+    """The corrections stop at the first candidate that ends within this of the target (the
+    regression's metric over pitch, roll and velocity; 0: all refine corrections simulated)."""
+    reference_hz: float = DEFAULT_REFERENCE_HZ["rigid"]
+    """Step rate, Hz, at which the reference wingbeat is simulated for S0 with --predict simulate,
+    on a copy of the flight (0: the flight's own rate, the paper's; the wingbeat flown is always
+    stepped at the flight's rate; --predict coarse: 1600 whatever this says)."""
     lookahead: str = "auto"
     """Simulate the next wingbeat's reference in a second thread while the corrections run:
     "on", "off" or "auto" (where it can and two cores are free); the same flight to the bit,
-    ~1.2x faster."""
+    ~1.2x faster with every correction simulated; needs reference_hz = 0."""
     k_dense_share: float = DEFAULT_K_DENSE_SHARE["rigid"]
     """LWLR's neighbours where a request lies among densely packed samples, as a share of the
     samples searched, at most k, growing to k where they are sparse (0: always k, the paper's
@@ -101,6 +125,13 @@ class ControllerConfig:
         if self.refine_goal not in REFINE_GOALS:
             raise InputError(f"controller refine_goal must be one of {', '.join(REFINE_GOALS)}, "
                              f"got {self.refine_goal!r}")
+        r = self.refine_stop
+        if isinstance(r, bool) or not (math.isfinite(r) and r >= 0.0):
+            raise InputError(f"controller refine_stop must be a refine error >= 0 (0: off), got {r!r}")
+        h = self.reference_hz
+        if isinstance(h, bool) or not (math.isfinite(h) and (h == 0.0 or h >= MIN_REFERENCE_HZ)):
+            raise InputError(f"controller reference_hz must be 0 (the flight's own rate) or a step "
+                             f"rate of at least {MIN_REFERENCE_HZ:g} Hz, got {h!r}")
         if self.lookahead not in LOOKAHEAD_MODES:
             raise InputError(f"controller lookahead must be one of {', '.join(LOOKAHEAD_MODES)}, "
                              f"got {self.lookahead!r}")
@@ -125,7 +156,8 @@ class ControllerConfig:
             raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
         return cls(carry=0.0 if predict == "regression" else DEFAULT_CARRY[feathers],
                    refine=DEFAULT_REFINE[feathers], refine_goal=DEFAULT_REFINE_GOAL[feathers],
-                   k_dense_share=DEFAULT_K_DENSE_SHARE[feathers])
+                   refine_stop=DEFAULT_REFINE_STOP[feathers],
+                   reference_hz=DEFAULT_REFERENCE_HZ[feathers], k_dense_share=DEFAULT_K_DENSE_SHARE[feathers])
 
     @classmethod
     def from_toml(cls, path: str | Path, base: ControllerConfig | None = None) -> ControllerConfig:

@@ -26,7 +26,7 @@ from flapsim.bird.body.model import Dove
 from flapsim.bird.control.config import LOOKAHEAD_MODES, MAX_REFINE, REFINE_GOALS, ControllerConfig
 from flapsim.bird.control.database import load_database, read_header
 from flapsim.bird.control.lookahead import ReferenceLookahead
-from flapsim.bird.control.prediction import PREDICT_MODES, CoarsePredictor, S0Predictor
+from flapsim.bird.control.prediction import COARSE_RATE_HZ, PREDICT_MODES, CoarsePredictor, S0Predictor
 from flapsim.bird.control.regression import (
     MIRROR_STATE,
     PAPER_WEIGHTS,
@@ -111,8 +111,10 @@ class WingbeatController:
     lo: np.ndarray | None = None
     hi: np.ndarray | None = None
     predictor: S0Predictor | CoarsePredictor | None = None
-    """None (default): S0 from a simulation of P0 every wingbeat (the paper); else simulated
-    at a coarser step (:class:`CoarsePredictor`) or predicted (:class:`S0Predictor`)."""
+    """None (default here): S0 from a simulation of P0 on the flight every wingbeat (the
+    paper); else simulated on a copy at a coarser step (:class:`CoarsePredictor`: the rigid
+    dove's default through :attr:`ControllerConfig.reference_hz`, and ``predict="coarse"``)
+    or predicted (:class:`S0Predictor`)."""
     carry: float = 0.0
     """Share c of the last wingbeat's change from P0 that the next wingbeat starts from:
     its reference is P0 + c (P_last - P0), simulated for S0 as P0 is, and the regression's
@@ -145,9 +147,15 @@ class WingbeatController:
     in one beat (the forward speed a slowing dove is asked, 2-4 m/s short), the unreachable
     part of the shortfall outweighs the rest in the ranking, and the wingbeat that keeps a
     little more speed is flown over the one that holds the bank or the pitch asked."""
+    refine_stop: float = 0.0
+    """The corrections stop at the first candidate that ends within this of the target, in
+    :func:`refine_error`'s metric (0, the default here: all :attr:`refine` corrections are
+    simulated; :func:`load_controller` uses its configuration's). In steady flight the first
+    answer usually lands that close, and a correction costs a whole wingbeat's simulation."""
     config: ControllerConfig | None = None
     """The configuration :func:`load_controller` built it from (provenance), None otherwise."""
     _last: np.ndarray | None = field(default=None, repr=False)
+    _predict: str = field(default="simulate", repr=False)
 
     def __post_init__(self) -> None:
         if self.refine_goal not in REFINE_GOALS:
@@ -157,6 +165,9 @@ class WingbeatController:
                 or not 0 <= int(self.refine) <= MAX_REFINE):
             raise InputError(f"refine (simulated corrections per wingbeat) must be 0..{MAX_REFINE}, "
                              f"got {self.refine!r}")
+        if not (np.isfinite(self.refine_stop) and self.refine_stop >= 0.0):
+            raise InputError(f"refine_stop (the error that ends the corrections) must be >= 0, "
+                             f"got {self.refine_stop!r}")
         if self.regressor.dP.shape[1] != N_PARAMS:
             raise InputError(f"database dP has {self.regressor.dP.shape[1]} columns, expected {N_PARAMS}")
         if not (np.isfinite(self.carry) and 0.0 <= self.carry <= 1.0):
@@ -250,6 +261,8 @@ class WingbeatController:
             err = refine_error(e.S, S_t, self.regressor.w)
             if best is None or err < best[0]:
                 best = (err, P, projected, e)
+                if err < self.refine_stop:
+                    break  # near enough: the next correction would cost a wingbeat for little
                 if self.lookahead is not None and self.predictor is None and i < n:
                     # the next wingbeat's reference if this one is flown, on the other core
                     # while the next correction is simulated here (after the last correction
@@ -265,11 +278,15 @@ class WingbeatController:
 
     @property
     def predict(self) -> str:
-        """How S0 is found: ``simulate``, ``coarse`` (:class:`CoarsePredictor`) or
-        ``regression`` (:class:`S0Predictor`)."""
+        """How S0 is found, as :func:`load_controller`'s ``predict``: ``simulate`` (on the
+        flight, or on a copy at :attr:`ControllerConfig.reference_hz`), ``coarse``
+        (:class:`CoarsePredictor` at :data:`COARSE_RATE_HZ`) or ``regression``
+        (:class:`S0Predictor`)."""
         if self.predictor is None:
             return "simulate"
-        return "coarse" if isinstance(self.predictor, CoarsePredictor) else "regression"
+        if isinstance(self.predictor, CoarsePredictor):
+            return "simulate" if self._predict == "simulate" else "coarse"
+        return "regression"
 
 
 @dataclass
@@ -479,7 +496,8 @@ def make_lookahead(flight: DoveFlight, mode: str, refine: int, predict: str
     if not refine:
         why = "it runs beside the simulated corrections: set refine = 1 or more"
     elif predict != "simulate":
-        why = f"it simulates S0 ahead: use --predict simulate, not {predict}"
+        why = ("it simulates S0 ahead at the flight's own rate: use --predict simulate with "
+               f"reference_hz = 0, not S0 {'on a coarser copy' if predict == 'coarse' else 'regressed'}")
     elif flight.aero.flow.has_python:
         why = "a Python flow field runs under the GIL every step: nothing to run beside it"
     elif flight.modal is not None and not flight.modal.engine:
@@ -511,13 +529,17 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     ``flight``'s dove, :meth:`ControllerConfig.for_dove`, without the look-ahead thread)
     tunes the rest: the carry (:attr:`WingbeatController.carry`), the simulated corrections
     and their goal (:attr:`WingbeatController.refine`, :attr:`WingbeatController.refine_goal`),
-    the look-ahead, and the regression's dense neighbourhood (LWLR only: ``k_dense_share`` of
-    the samples searched, at most ``k``; :class:`Regressor`'s ``k_dense``), request clip and
-    start-state weight (:class:`Regressor`'s ``clip_request``, ``context_weight``).
+    the early stop of the corrections (:attr:`WingbeatController.refine_stop`), the
+    reference's step rate (``reference_hz``), the look-ahead, and the regression's dense
+    neighbourhood (LWLR only: ``k_dense_share`` of the samples searched, at most ``k``;
+    :class:`Regressor`'s ``k_dense``), request clip and start-state weight
+    (:class:`Regressor`'s ``clip_request``, ``context_weight``).
     ``overrides``: fields of the config replaced (``carry=0.3``, as
     :func:`dataclasses.replace`).
 
-    ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0;
+    ``predict``: ``simulate`` (default; the paper) flies P0 every wingbeat for S0, on the
+    flight or, where the config's ``reference_hz`` asks (the rigid dove's default), on a copy
+    at that step rate (:class:`CoarsePredictor`);
     ``coarse`` flies it every wingbeat at :data:`COARSE_RATE_HZ` (:class:`CoarsePredictor`);
     ``regression`` predicts it from the database's (S, S0) pairs and simulates P0 only
     every ``predict_every``-th wingbeat (:class:`S0Predictor`); it predicts P0's end only,
@@ -526,9 +548,9 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     The config's ``lookahead`` (:data:`LOOKAHEAD_MODES`): ``on`` simulates the next
     wingbeat's reference in a second thread while the corrections run
     (:attr:`WingbeatController.lookahead`: the same flight, less wall time on two free
-    cores), and is a one-line error where it cannot (no corrections, S0 not simulated, a
-    Python flow field); ``auto`` turns it on where it can and two CPU cores are free to this
-    process; ``off`` never."""
+    cores), and is a one-line error where it cannot (no corrections, S0 not simulated on the
+    flight at its own rate, a Python flow field); ``auto`` turns it on where it can and two
+    CPU cores are free to this process; ``off`` never."""
     if predict not in PREDICT_MODES:
         raise InputError(f"S0 prediction must be one of {', '.join(PREDICT_MODES)}, got {predict!r}")
     if config is None:
@@ -539,9 +561,11 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     if config.carry and predict == "regression":
         raise InputError("carry needs S0 simulated (--predict simulate or coarse): --predict "
                          "regression predicts the reference wingbeat P0's end only")
-    if predict == "coarse" and flight.modal is not None and not flight.modal.engine:
-        raise InputError("--predict coarse needs rigid feathers or modal ones integrated by the "
-                         "engine (ModalParams(integration='engine'), the default)")
+    rate = reference_rate(flight, predict, config)
+    if rate and flight.modal is not None and not flight.modal.engine:
+        raise InputError("S0 simulated on a coarser copy (--predict coarse, reference_hz) needs "
+                         "rigid feathers or modal ones integrated by the engine "
+                         "(ModalParams(integration='engine'), the default)")
     path = db_path or bundled_database_path(flight.dove.feathers)
     db = load_database(path, model_hash=flight.dove.hash(), require_finalized=True)
     for name in ("dS", "dP"):
@@ -579,13 +603,27 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     if refine_goal == "reachable" and reg.dS_lo is None:
         refine_goal = "full"  # no clip, nothing to clip the goal to: the same thing
     ctl = WingbeatController(flight, reg, P0, carry=float(config.carry), refine=config.refine,
-                             refine_goal=refine_goal, config=config)
-    ctl.lookahead = make_lookahead(flight, config.lookahead, config.refine, predict)
+                             refine_goal=refine_goal, refine_stop=float(config.refine_stop),
+                             config=config, _predict=predict)
+    ctl.lookahead = make_lookahead(flight, config.lookahead, config.refine,
+                                   "coarse" if rate else predict)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
-    elif predict == "coarse":
-        ctl.predictor = CoarsePredictor()
+    elif rate:
+        ctl.predictor = CoarsePredictor(rate)
     return ctl
+
+
+def reference_rate(flight: DoveFlight, predict: str, config: ControllerConfig) -> float:
+    """The step rate, Hz, of the copy of ``flight`` that simulates the reference wingbeat for
+    S0 (:class:`CoarsePredictor`), or 0 where it is simulated on the flight itself (at its own
+    rate) or not at all (``predict="regression"``)."""
+    if predict == "coarse":
+        return COARSE_RATE_HZ
+    own = 1.0 / float(flight.model.opt.timestep)
+    if predict != "simulate" or not config.reference_hz or config.reference_hz >= own * (1 - 1e-9):
+        return 0.0
+    return float(config.reference_hz)
 
 
 def _predictor(db, path, every: int) -> S0Predictor:

@@ -265,3 +265,35 @@ def test_a_coarse_modal_twin_steps_its_modes_exactly_at_its_own_timestep():
         np.testing.assert_allclose(np.abs(lam), np.exp(-z * omega[f] * dt), rtol=1e-6)
     finally:
         fl.close()
+
+
+def test_the_rigid_doves_reference_is_simulated_on_a_copy_at_its_configured_rate():
+    """ControllerConfig.reference_hz: the rigid dove's default simulates S0 on a copy at
+    1600 Hz (its reference wingbeat is that copy's steps: duration x 1600 a whole number, and
+    its end the copy's to the bit), 0 or the flight's own rate on the flight itself; the
+    modal dove keeps its flight's rate; rates below the measured floor are refused."""
+    from flapsim.bird.control.config import DEFAULT_REFERENCE_HZ, MIN_REFERENCE_HZ, ControllerConfig
+
+    assert DEFAULT_REFERENCE_HZ["rigid"] == COARSE_RATE_HZ and DEFAULT_REFERENCE_HZ["modal"] == 0.0
+    fl = DoveFlight(Dove.load())
+    try:
+        ctl = load_controller(fl, refine=0)
+        assert isinstance(ctl.predictor, CoarsePredictor) and ctl.predictor.rate_hz == COARSE_RATE_HZ
+        assert ctl.predict == "simulate"  # asked as simulate; --predict coarse says coarse
+        assert load_controller(fl, predict="coarse").predict == "coarse"
+        start_cruise(fl, ctl.P0)
+        snap = cycle.snapshot(fl)
+        step = ctl.choose(lambda e0: e0.S, snap)
+        n = step.reference.duration * COARSE_RATE_HZ
+        assert abs(n - round(n)) < 1e-6
+        twin = fl.twin(COARSE_RATE_HZ)
+        own = cycle.fly_cycle(twin, snap, ctl.P0, ctl.ref)
+        np.testing.assert_array_equal(step.reference.snapshot.physics, own.snapshot.physics)
+        for rate in (0.0, 1.0 / fl.model.opt.timestep):
+            assert load_controller(fl, reference_hz=rate).predictor is None
+        for bad in (MIN_REFERENCE_HZ - 1.0, -1600.0, float("nan")):
+            with pytest.raises(InputError, match="reference_hz"):
+                load_controller(fl, reference_hz=bad)
+    finally:
+        fl.close()
+    assert ControllerConfig.for_dove("modal").reference_hz == 0.0

@@ -21,6 +21,10 @@ def test_each_dove_has_its_defaults():
     assert rigid == ControllerConfig()
     assert (rigid.carry, rigid.refine, rigid.k_dense_share) == (0.4, 2, 0.005)
     assert (modal.carry, modal.refine, modal.k_dense_share) == (0.0, 0, 0.0)
+    # the rigid dove stops its corrections near the target and simulates S0 at 1600 Hz; the
+    # modal dove has no corrections to stop and simulates S0 at its flight's rate
+    assert (rigid.refine_stop, rigid.reference_hz) == (0.09, 1600.0)
+    assert (modal.refine_stop, modal.reference_hz) == (0.0, 0.0)
     # S0 predicted by regression is P0's end only: nothing to carry
     assert ControllerConfig.for_dove("rigid", "regression").carry == 0.0
     for feathers in ("rigid", "modal"):
@@ -33,7 +37,8 @@ def test_each_dove_has_its_defaults():
 
 def test_a_toml_file_reads_back_into_the_configuration_written(tmp_path):
     controller = ControllerConfig(carry=0.25, refine=1, refine_goal="reachable", lookahead="off",
-                                  k_dense_share=0.01, clip_request=0.05, state_weight=2.0)
+                                  k_dense_share=0.01, clip_request=0.05, state_weight=2.0,
+                                  refine_stop=0.2, reference_hz=2000.0)
     path = PathControlConfig(max_bank_deg=50.0, bank_lead_s=0.1, aoa_per_g_deg=20.0,
                              climb_per_speed_deficit=0.05, turn_load_factor=1.3,
                              turn_speed_floor=6.0)
@@ -62,6 +67,8 @@ def test_a_toml_file_reads_back_into_the_configuration_written(tmp_path):
     ("[controller]\ncarry = \"0.3\"\n", "carry must be a number"),
     ("[controller]\nlookahead = 1\n", "lookahead must be a string"),
     ("[controller]\nrefine_goal = \"half\"\n", "refine_goal must be one of reachable, full"),
+    ("[controller]\nreference_hz = 900\n", "reference_hz must be 0 (the flight's own rate) or"),
+    ("[controller]\nrefine_stop = -0.1\n", "refine_stop must be a refine error >= 0"),
     ("[path]\nmax_bank_deg = 90\n", "max_bank_deg must be 10..80 deg"),
     ("[controller\n", "not valid TOML"),
 ])
@@ -98,9 +105,11 @@ def test_list_config_prints_the_defaults_and_writes_them_as_json(tmp_path, capsy
 
 
 def test_config_changes_the_flight_and_is_recorded(tmp_path):
-    # the same cruise with the defaults and with the regression's answer flown as it is
+    # the same cruise with the defaults and as the paper flies it: S0 simulated at the flight's
+    # rate, the regression's answer flown as it is (in calm cruise the default's first answer is
+    # near enough and flown as it is too, so the corrections alone would not tell them apart)
     f = tmp_path / "paper.toml"
-    f.write_text("[controller]\nrefine = 0\ncarry = 0.0\n")
+    f.write_text("[controller]\nrefine = 0\ncarry = 0.0\nreference_hz = 0.0\n")
     out = {}
     for name, extra in (("default", []), ("config", ["--config", str(f)])):
         js = tmp_path / f"{name}.json"

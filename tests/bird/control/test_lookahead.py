@@ -23,14 +23,18 @@ from flapsim.core.callbacks import DISPATCHER
 from flapsim.core.errors import InputError
 from flapsim.fluid.flow import Gust, PythonField
 
+#: The look-ahead simulates the paper's S0 (on the flight, at its own rate) ahead; every
+#: correction simulated, so that each wingbeat has a best-so-far before its last correction
+PAPER_S0 = {"reference_hz": 0.0, "refine_stop": 0.0}
+
 
 def test_the_lookahead_flies_the_same_flight_to_the_bit_in_a_gust_and_a_push():
     # a turn (the corrections at work), a side gust (the flow shared with the copy, read at
     # the copy's own time) and a push (the pushed wingbeat's end is no candidate's)
     task = Task(inclined_circle(6.0, 0.0, 0.5), flow=(Gust((0.0, 1.0, 0.0), 2.0, 0.3, 0.6),),
                 pushes=(PushSpec(0.55, 4.0, "left"),), max_wingbeats=14)
-    off = fly_task(task, lookahead="off")
-    on = fly_task(task, lookahead="on")
+    off = fly_task(task, lookahead="off", **PAPER_S0)
+    on = fly_task(task, lookahead="on", **PAPER_S0)
     assert off.lookahead is None
     assert len(on.positions) == len(off.positions) == 15
     # identical, not close: the copy steps the same model at the same step from the same state
@@ -78,7 +82,7 @@ def _flown_candidates(monkeypatch, ctl, target, wingbeats):
 
 def test_the_lookahead_flies_the_chosen_wingbeats_to_the_bit_and_takes_every_one_it_can(
         flight, monkeypatch):
-    ctl = C.load_controller(flight, lookahead="off")
+    ctl = C.load_controller(flight, lookahead="off", **PAPER_S0)
     target = CruiseTarget(trim_of_base_flight(flight, ctl.P0), altitude=10.0, heading=0.4)
     off = _flown_candidates(monkeypatch, ctl, target, 8)
     target.reset()
@@ -155,7 +159,11 @@ def test_the_lookahead_setting_is_an_error_where_it_cannot_run(flight, monkeypat
     assert C.make_lookahead(flight, "auto", 2, "simulate") is None
     monkeypatch.setattr(C, "usable_cores", lambda: 2)
     assert isinstance(C.make_lookahead(flight, "auto", 2, "simulate"), ReferenceLookahead)
-    assert C.load_controller(flight, lookahead="on").lookahead is not None
+    assert C.load_controller(flight, lookahead="on", reference_hz=0.0).lookahead is not None
+    # S0 on a coarser copy (the rigid dove's default): nothing to simulate ahead on the flight
+    with pytest.raises(InputError, match="reference_hz = 0"):
+        C.load_controller(flight, lookahead="on")
+    assert C.load_controller(flight, lookahead="auto").lookahead is None
 
 
 def test_a_python_flow_field_refuses_the_lookahead():

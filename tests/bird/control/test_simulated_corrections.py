@@ -26,6 +26,10 @@ from flapsim.core.errors import InputError
 #: this module's flight keeps its feather forces registered from test to test (conftest)
 SHARED_FLIGHT = True
 
+#: S0 simulated on the flight at its own rate (the paper's; the candidates are computed by
+#: hand from it here) and every correction simulated
+PAPER_S0 = {"reference_hz": 0.0, "refine_stop": 0.0}
+
 
 @pytest.fixture(scope="module")
 def flight():
@@ -94,7 +98,7 @@ def test_the_candidate_nearest_the_target_is_flown_and_its_simulation_is_the_fli
     P0's end clipped to the database's 2-98 % quantiles of dS, as the request is) and ranked
     by the error in the regression's metric; the controller flies the best, and restoring its
     simulated end instead of flying it again leaves the bird in the same state to the bit."""
-    ctl = load_controller(flight, refine=2, refine_goal=aim)
+    ctl = load_controller(flight, refine=2, refine_goal=aim, **PAPER_S0)
     target = _target_banked(trim, speed_surplus=0.5)
     start_cruise(flight, ctl.P0, roll_deg=roll_deg)
     ctl.reset()
@@ -143,7 +147,7 @@ def test_the_candidate_nearest_the_target_is_flown_and_its_simulation_is_the_fli
 def test_refine_zero_is_the_regressions_answer(flight, trim):
     # 0: one answer, flown as it is; the same wingbeat as the first candidate of refine 2
     target = _target_banked(trim)
-    a, b = load_controller(flight, refine=0), load_controller(flight, refine=2)
+    a, b = load_controller(flight, refine=0, **PAPER_S0), load_controller(flight, refine=2, **PAPER_S0)
     start_cruise(flight, a.P0)
     snap = cycle.snapshot(flight)
     sa = a.choose(target, snap)
@@ -204,3 +208,47 @@ def test_cruise_with_corrections_holds_level_from_a_roll_error(flight, trim):
     assert m["max_altitude_deviation"] < 0.5, m
     assert m["max_speed_deviation"] < 0.5, m
     assert m["max_heading_deviation_deg"] < 5.0, m
+
+
+def test_the_corrections_stop_at_the_first_candidate_near_enough(flight, trim):
+    """refine_stop: the chain of candidates ends at the first that ends within the stop of the
+    target. The full chain's errors are computed here from the same start (refine_stop 0):
+    a stop just above candidate i's error (and below every earlier one's) flies candidate i
+    after i + 1 simulations; a stop above any error flies the regression's first answer, as
+    refine 0 does; 0 simulates every correction."""
+    target = _target_banked(trim)
+    full = load_controller(flight, refine=2, **PAPER_S0)
+    start_cruise(flight, full.P0)
+    snap = cycle.snapshot(flight)
+    # the chain by hand, as the controller ranks it
+    e0 = cycle.fly_cycle(flight, snap, full.P0, full.ref)
+    S_t = target(e0)
+    request = S_t - e0.S
+    cands = []
+    for _ in range(3):
+        P, _ = full._answer(request, None, full.P0)
+        e = cycle.fly_cycle(flight, snap, P, full.ref)
+        cands.append((refine_error(e.S, S_t, full.regressor.w), P, e))
+        request = request + np.where(REFINE_COMPONENTS, S_t - e.S, 0.0)
+    errs = [c[0] for c in cands]
+    assert errs[1] < errs[0]  # a correction that helps: the stop below errs[0] is a real case
+    step = full.choose(target, snap)
+    assert step.simulated == 3
+    np.testing.assert_array_equal(step.P, min(cands, key=lambda c: c[0])[1])
+    # huge: the first answer, once simulated, and flown from its own simulation
+    huge = load_controller(flight, refine=2, reference_hz=0.0, refine_stop=1e9)
+    step = huge.choose(target, snap)
+    assert step.simulated == 1
+    np.testing.assert_array_equal(step.P, cands[0][1])
+    np.testing.assert_array_equal(step.end.snapshot.physics, cands[0][2].snapshot.physics)
+    once = load_controller(flight, refine=0, reference_hz=0.0).choose(target, snap)
+    np.testing.assert_array_equal(once.P, cands[0][1])
+    # between the first candidate's error and the second's: the second is flown after two
+    mid = load_controller(flight, refine=2, reference_hz=0.0, refine_stop=0.5 * (errs[0] + errs[1]))
+    step = mid.choose(target, snap)
+    assert step.simulated == 2
+    np.testing.assert_array_equal(step.P, cands[1][1])
+    np.testing.assert_array_equal(step.end.snapshot.physics, cands[1][2].snapshot.physics)
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(InputError, match="refine_stop"):
+            load_controller(flight, refine_stop=bad)
