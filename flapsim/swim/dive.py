@@ -84,6 +84,7 @@ class SurfaceDive:
         if not len(below):
             raise InputError("a surface dive needs a target point below the surface")
         self.point = pts[below[0]]
+        self._index = int(below[0])
         if not (0.0 < self.exhaled_l <= self.lungs_l):
             raise InputError(f"exhaled lung air must be in (0, {self.lungs_l}] L")
         self.dive = load_stroke(str(DIVE_FILE))
@@ -136,6 +137,10 @@ class SurfaceDive:
         if self.state in ("dive", "under"):
             if near <= radius and self.events["reached"] is None:
                 self.events["reached"] = t
+                # the target goes on with the dive: its own rule (the centre of mass)
+                # could miss the point the head reached and turn the swimmer back to it
+                if hasattr(self.target, "reached_by"):
+                    self.target.reached_by(self._index, t)
             if self.events["reached"] is not None or t - self.events["dive"] >= self.breath_hold_s:
                 self._breathe(sw, self.lungs_l)  # breathe in: up to the surface
                 self.state, self.events["inhale"] = "up", t

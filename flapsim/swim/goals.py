@@ -191,6 +191,14 @@ class Waypoints:
             self.reached[self._i] = float(t)
             self._i += 1
 
+    def reached_by(self, index: int, t: float) -> None:
+        """Count point ``index`` reached at ``t`` by a rule of its own (a surface dive's:
+        the head or the pelvis within the radius, where the centre of mass may stay just
+        outside it) and go on to the next, if it is the current one."""
+        if self._i == index and index < len(self.points):
+            self.reached[index] = float(t)
+            self._i += 1
+
     @property
     def current(self) -> int:
         return min(self._i, len(self.points) - 1)

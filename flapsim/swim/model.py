@@ -1,7 +1,7 @@
 """The swimmer: its MJCF model, hydrodynamic polygons, buoyancy and the water it swims in.
 
 ``Swimmer(params)`` loads ``swimmer_mjcf/pool.xml`` (or ``swimmer.xml``), sets the lung
-volume, and attaches two force providers to its ``MjData``:
+volume, and attaches three force providers to its ``MjData``:
 
 * hydrodynamics (:class:`flapsim.fluid.surfaces.SurfaceForces`): every box face is a
   polygon with the paper's forward vector F along its long side, the Hoerner thin-plate
@@ -11,6 +11,9 @@ volume, and attaches two force providers to its ``MjData``:
   ``patch_length`` so the force on a rotating limb follows its speed along it. Where two
   segments meet end to end at a joint (spine, neck, hips, knees, elbows, wrists, ankles)
   the touching parts of their end faces are inside the body, never wetted, and removed;
+* wave-making resistance (:class:`flapsim.fluid.waves.WaveDrag`) on the same polygons
+  near the surface, steep in the Froude number on the standing height and fading with
+  depth as exp(-2 g d / v^2);
 * buoyancy (:class:`flapsim.fluid.buoyancy.Buoyancy`): one ellipsoid per segment with
   the segment's volume (box volume, the thorax's including the lungs).
 
@@ -32,6 +35,7 @@ from flapsim.fluid.buoyancy import Buoyancy, BuoyancyParams
 from flapsim.fluid.coefficients import hoerner_plate, rounded_surface
 from flapsim.fluid.flow import FlowField
 from flapsim.fluid.surfaces import FluidParams, PolygonSet, SurfaceForces
+from flapsim.fluid.waves import WaveDrag, WaveParams
 
 #: segment (body and box geom) names, parent first
 SEGMENTS = (
@@ -43,6 +47,8 @@ SEGMENTS = (
 BODY_DENSITY = 1044.0
 #: lung volume built into swimmer.xml [L] (flapsim.swim.build.swimmer)
 XML_LUNG_L = 3.0
+#: see SwimmerParams.wave_c_hump (flapsim.swim.tow.calibrate_waves recomputes it)
+WAVE_C_HUMP = 0.00873
 #: the upper trunk box's depth, width and length [m] at XML_LUNG_L is read from the model
 
 
@@ -86,6 +92,11 @@ class SwimmerParams:
     #: stagnation pressure coefficient of the tubes' sides, trunk and limbs (1.8: a
     #: cylinder in cross flow CD 1.2, Hoerner 1965's 1.0-1.2 at Re 1e4-2e5)
     cp_tube: float = 1.8
+    #: wave-making resistance at the hump (Fr 0.5) per wetted area
+    #: (:mod:`flapsim.fluid.waves`), fitted to 11.5 N of wave drag at 1.89 m/s at the
+    #: surface (Toussaint et al. 2002) on the rounded body in the towed streamline; 0 = no
+    #: waves
+    wave_c_hump: float = WAVE_C_HUMP
     #: "pool" (floor 3 m down, visible water) or "bare" (swimmer.xml only)
     world: str = "pool"
     #: physics timestep [s]; 4 ms is stable with the PD gains of flapsim.swim.muscles
@@ -110,6 +121,9 @@ class SwimmerParams:
             raise InputError("r_min and r_max are ratios in 0..1")
         if self.patch_length <= 0:
             raise InputError("patch_length must be > 0 m")
+        if not (math.isfinite(self.wave_c_hump) and 0.0 <= self.wave_c_hump <= 0.1):
+            raise InputError(f"wave_c_hump must be 0..0.1 (a hull's wave coefficient), got "
+                             f"{self.wave_c_hump}")
 
 
 def load_swimmer_model(lung_volume_l: float = XML_LUNG_L, world: str = "pool",
@@ -541,6 +555,12 @@ class Swimmer:
                         surface_z=p.water_level),
             self.flow, name="swimmer hydrodynamics",
         )
+        # the same wetted polygons make the waves; Fr on the standing height
+        self.waves = WaveDrag(
+            self.model, self.polygons,
+            WaveParams(p.water_density, p.water_level, standing_height(self.model),
+                       p.wave_c_hump, float(np.linalg.norm(self.model.opt.gravity))),
+            self.flow, self.hydro._ext, name="swimmer wave drag")
         volumes = {}
         for n in SEGMENTS:
             gid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, n)
@@ -556,6 +576,8 @@ class Swimmer:
         """Start applying hydrodynamics and buoyancy at every step."""
         if not self._regs:
             self._regs = [self.hydro.register(self.data), self.buoyancy.register(self.data)]
+            if self.params.wave_c_hump > 0:
+                self._regs.append(self.waves.register(self.data))
 
     def detach(self) -> None:
         for r in self._regs:
@@ -575,6 +597,8 @@ class Swimmer:
         self.hydro.set_params(FluidParams(rho, p.friction, p.front_facing_only, p.surface_z))
         b = self.buoyancy.params
         self.buoyancy.set_params(BuoyancyParams(b.water_level, rho, b.method))
+        w = self.waves.params
+        self.waves.set_params(WaveParams(rho, w.surface_z, w.length, w.c_hump, w.gravity))
 
     def update_flow(self) -> np.ndarray:
         """Swimmer-induced flow (paper eq. 5) plus the user's uniform current, set as the
@@ -650,6 +674,19 @@ class Swimmer:
 #: these, so they are read after every step.
 _BAD = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                          mujoco.mjtWarning.mjWARN_BADQACC)]
+
+
+def standing_height(model: mujoco.MjModel) -> float:
+    """The swimmer's height [m] standing in its zero pose: sole to the top of the head."""
+    d = mujoco.MjData(model)
+    mujoco.mj_forward(model, d)
+    lo, hi = np.inf, -np.inf
+    for n in SEGMENTS:
+        g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n)
+        h = float(np.abs(d.geom_xmat[g].reshape(3, 3))[2] @ model.geom_size[g])
+        lo = min(lo, d.geom_xpos[g][2] - h)
+        hi = max(hi, d.geom_xpos[g][2] + h)
+    return float(hi - lo)
 
 
 def check_diverged(m: mujoco.MjModel, d: mujoco.MjData) -> None:

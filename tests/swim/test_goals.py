@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flapsim.core.errors import DataFileError, InputError
-from flapsim.swim.goals import Path, Point, figure_eight, load_path
+from flapsim.swim.goals import Path, Point, Waypoints, figure_eight, load_path
 from flapsim.swim.simulate import swim
 
 
@@ -112,3 +112,15 @@ def test_steering_across_a_current():
     assert basic["lateral_drift_m"] > 3.0
     steered = swim("crawl", 30.0, current=(0.0, 0.2, 0.0), target=Point(15.0, 0.0)).summary()
     assert steered["target_reached_s"] is not None and steered["target_reached_s"] < 25.0
+
+
+def test_a_waypoint_reached_by_a_dive_s_own_rule_moves_the_target_on():
+    wp = Waypoints(np.array([[8.0, 0.0, -2.0], [16.0, 0.0, 0.0]]), 0.75)
+    # the centre of mass 0.8 m off the point below: not reached by the waypoints' rule
+    wp.update(np.array([8.0, 0.0, -1.2]), 14.0)
+    assert wp.current == 0 and wp.reached == [None, None]
+    wp.reached_by(1, 14.2)  # not the current point: nothing happens
+    assert wp.current == 0
+    wp.reached_by(0, 14.5)  # the dive's head came within the radius
+    assert wp.current == 1 and wp.reached == [14.5, None]
+    assert np.array_equal(wp.position(15.0), [16.0, 0.0, 0.0])

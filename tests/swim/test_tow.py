@@ -54,13 +54,14 @@ def test_the_towed_swimmer_meets_a_persons_drag():
     r = tow([1.0, 1.5], SwimmerParams(body_shape="rounded"))
     # Narita et al. 2017: 23.5 v^2 N; the acceptance band is 1.3x (people differ by
     # ~20 % in size and shape; Gatta 2016 measures ~25)
-    assert r.k_surface <= 1.3 * NARITA_K and r.k_surface >= NARITA_K / 1.3
+    assert r.k_submerged <= 1.3 * NARITA_K and r.k_submerged >= NARITA_K / 1.3
+    assert r.summary()["tow_drag_coefficient"] == r.k_submerged
     # drag ~ v^2 over the towed range (pressure drag; friction ~ v is ~2 % of it)
-    assert r.surface_n[1] / r.surface_n[0] == pytest.approx(2.25, rel=0.05)
+    assert r.submerged_n[1] / r.submerged_n[0] == pytest.approx(2.25, rel=0.05)
     # the paper's boxes: 3.4x a person (the shoulders' ledge and the top of the head)
     box = tow_drag([1.0], SwimmerParams(body_shape="box"))[0]
     assert box > 2.5 * NARITA_K
-    assert r.summary()["wave_drag_modelled"] is False
+    assert r.summary()["wave_drag_modelled"] is True
 
 
 def test_bad_tow_speeds_are_refused():
@@ -78,10 +79,14 @@ def test_tow_and_target_depths_from_the_command_line(tmp_path, capsys):
     import json
 
     s = json.loads(out.read_text())
-    # the fit through two speeds equals the towed drags' own v^2 ratio (closed form)
-    k = (s["tow_drag_surface_n"][0] + 4 * s["tow_drag_surface_n"][1]) / 17.0
-    assert s["tow_drag_coefficient"] == pytest.approx(k, rel=1e-9)
-    assert s["wave_drag_modelled"] is False
+    # the fit through two speeds equals the towed drags' own v^2 ratio (closed form); the
+    # headline is the submerged tow's, the surface one adds the waves
+    for key, drags in (("tow_drag_coefficient", "tow_drag_submerged_n"),
+                       ("tow_drag_coefficient_surface", "tow_drag_surface_n")):
+        k = (s[drags][0] + 4 * s[drags][1]) / 17.0
+        assert s[key] == pytest.approx(k, rel=1e-9)
+    assert s["wave_drag_modelled"] is True
+    assert s["tow_drag_coefficient_surface"] > s["tow_drag_coefficient"]
     # what cannot be done is refused in one line, never ignored
     assert cli.main(["swim", "--tow", "1,x"]) == 2
     assert cli.main(["swim", "--target", "1,2,3,4"]) == 2

@@ -139,8 +139,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tow", metavar="V1,V2,...", default=None,
                    help="instead of swimming: tow the body in a streamlined glide at these "
                         "speeds [m/s], at the surface and 0.5 m under it, and report the drag "
-                        "and the fitted D = K v^2 (tow_drag_coefficient; people 23.5, Narita "
-                        "et al. 2017)")
+                        "(its wave-making part apart) and the fitted D = K v^2 "
+                        "(tow_drag_coefficient, the submerged one; people 23.5, Narita et al. "
+                        "2017)")
     p.add_argument("--table", metavar="FILE.json", default=None,
                    help="per-cycle calibration table to use (or, with --calibrate, to write); "
                         "default: <stroke>.cycle.json next to the stroke file")
@@ -277,12 +278,14 @@ def tow_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
     s["params"] = {k: getattr(params, k) for k in params.__dataclass_fields__}
     print(f"towed in a streamlined glide ({params.body_shape} body); people: {NARITA_K} v^2 N "
           "(Narita et al. 2017)")
-    print(f"{'v [m/s]':>8} {'surface [N]':>12} {f'{r.depth_m:g} m under [N]':>15} {'people [N]':>11}")
-    for v, a, b in zip(r.speeds, r.surface_n, r.submerged_n, strict=True):
-        print(f"{v:8.2f} {a:12.1f} {b:15.1f} {NARITA_K * v * v:11.1f}")
-    print(f"tow_drag_coefficient {r.k_surface:.1f} N s^2/m^2 at the surface "
-          f"({r.k_surface / NARITA_K:.2f}x people), {r.k_submerged:.1f} under it; the fluid model "
-          "has no wave drag, so the surface is not the higher one as it is for people")
+    print(f"{'v [m/s]':>8} {'surface [N]':>12} {'(waves)':>8} {f'{r.depth_m:g} m under [N]':>15} "
+          f"{'(waves)':>8} {'people [N]':>11}")
+    for v, a, wa, b, wb in zip(r.speeds, r.surface_n, r.wave_surface_n, r.submerged_n,
+                               r.wave_submerged_n, strict=True):
+        print(f"{v:8.2f} {a:12.1f} {wa:8.1f} {b:15.1f} {wb:8.1f} {NARITA_K * v * v:11.1f}")
+    print(f"tow_drag_coefficient {r.k_submerged:.1f} N s^2/m^2 {r.depth_m:g} m under the surface "
+          f"({r.k_submerged / NARITA_K:.2f}x people), {r.k_surface:.1f} at the surface with the "
+          "waves the body makes")
     return s
 
 
