@@ -18,6 +18,8 @@ from flapsim.core.errors import InputError
 from flapsim.fluid.flow import FlowField
 from flapsim.render.scene import Marker, add_items
 from flapsim.render.video import Camera, CameraRig, new_renderer
+from flapsim.swim.budget import summarize as summarize_budget
+from flapsim.swim.budget import water_work_rates
 from flapsim.swim.continuous import RULES, HandRules
 from flapsim.swim.goals import Circle, Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
@@ -126,6 +128,10 @@ class SwimResult:
     #: at each sample: the heights of the centres of the hands (left, right) and the feet
     #: (left, right) [m, world z]
     limbs: np.ndarray | None = field(default=None, repr=False)
+    #: at each sample, with ``swim(budget=True)``: (n, groups, 2) the power each segment
+    #: group gives the water and its part against the body's progress [W]
+    #: (:func:`flapsim.swim.budget.water_work_rates`)
+    water_rates: np.ndarray | None = field(default=None, repr=False)
     #: the approach's switches between swimming and treading water
     #: (:meth:`flapsim.swim.arrival.Approach.summary`), if one ran
     approach: dict | None = None
@@ -313,6 +319,8 @@ class SwimResult:
             **self._target_summary(),
             **self._carriage_summary(sel),
             **self._limbs_summary(sel),
+            **({"water_budget": summarize_budget(self.water_rates[sel])}
+               if self.water_rates is not None and sel.any() else {}),
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
             "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
@@ -358,6 +366,7 @@ def swim(
     hand_params: object | None = None,
     speed: float | None = None,
     approach: object | None = None,
+    budget: bool = False,
 ) -> SwimResult:
     """Simulate ``stroke`` for ``seconds`` from rest and return what it measured.
 
@@ -379,6 +388,8 @@ def swim(
     ``approach``: a :class:`flapsim.swim.arrival.Approach` for ``target``: the per-cycle
     layer asks the speed it plans of each cycle (``speed``, if given, is the cruise),
     and at a fixed target the swimmer treads water (``result.approach``: its switches).
+    ``budget``: also sample where the water takes the power (:mod:`flapsim.swim.budget`) at
+    every recorded state (``result.water_rates``; the swim itself is unchanged).
     ``control_hook(swimmer, layer)`` runs at every control step (50 Hz) after the
     layers; returning False ends the swim early (the viewer uses it; ``layer.stack``
     is the :class:`LayerStack`, whose mode it may switch).
@@ -451,6 +462,8 @@ def swim(
     limb_gids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)
                  for n in ("hand_l", "hand_r", "foot_l", "foot_r")]
     limbs: list[np.ndarray] = []
+    water: list[np.ndarray] = []
+    scratch = mujoco.MjData(m) if budget else None
     pelvis = sw.body["pelvis"]
     renderer = None
     frames: list[np.ndarray] = []
@@ -475,6 +488,8 @@ def swim(
                     com.append(d.subtree_com[pelvis].copy())
                     head.append(d.geom_xpos[head_gid].copy())
                     limbs.append(d.geom_xpos[limb_gids, 2].copy())
+                    if budget:
+                        water.append(water_work_rates(sw, d, scratch))
                     if steps:  # the mean over the steps since the last sample
                         power.append(work / (steps * dt))
                         power_pos.append(work_pos / (steps * dt))
@@ -516,6 +531,8 @@ def swim(
                             com.append(d.subtree_com[pelvis].copy())
                             head.append(d.geom_xpos[head_gid].copy())
                             limbs.append(limbs[-1])
+                            if budget:
+                                water.append(water[-1])
                             power.append(power[-1])
                             power_pos.append(power_pos[-1])
                             yaw.append(yaw[-1])
@@ -555,6 +572,7 @@ def swim(
                       aim_heading=np.asarray(aim) if target is not None else None,
                       body_yaw=np.asarray(yaw), carriage=np.asarray(carriage),
                       limbs=np.asarray(limbs),
+                      water_rates=np.asarray(water) if budget else None,
                       approach=approach.summary() if approach is not None else None)
 
 

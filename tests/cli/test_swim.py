@@ -26,6 +26,24 @@ def test_swim_command_writes_json_and_track(tmp_path, capsys):
     assert "path" in capsys.readouterr().out
 
 
+def test_swim_power_reports_where_the_power_goes(tmp_path, capsys):
+    out_json = tmp_path / "p.json"
+    rc = cli.main(["swim", "--body", "rounded", "--stroke", "crawl", "--seconds", "6",
+                   "--power", "--json", str(out_json)])
+    assert rc == 0
+    s = json.loads(out_json.read_text())
+    b = s["water_budget"]
+    # each segment's slip and its work against the progress add up to its water work, and
+    # the groups to the whole body's
+    assert b["water_w"] == pytest.approx(sum(g["water_w"] for g in b["segments"].values()))
+    # once under way the arms push the body forwards: an efficiency strictly within (0, 1)
+    assert 0.0 < b["arms_froude_efficiency"] < 1.0
+    # a steady swim pays its muscles' work into the water: within a third (buoyancy,
+    # waves, the joint limits and the swim's own speeding up take the rest)
+    assert b["water_w"] == pytest.approx(s["muscle_power_mean_w"], rel=0.35)
+    assert "Froude efficiency" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--target", "1,2,3,4"], "two or three finite"),
     (["--target", "1,2,3"], "depth Z must be -50..0.5 m"),

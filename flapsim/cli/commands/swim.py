@@ -142,6 +142,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(its wave-making part apart) and the fitted D = K v^2 "
                         "(tow_drag_coefficient, the submerged one; people 23.5, Narita et al. "
                         "2017)")
+    p.add_argument("--power", action="store_true",
+                   help="also report where the power goes in the water: per segment, the part "
+                        "that moves the body and the slip that only stirs the water, and the "
+                        "arms' Froude efficiency (swimmers' crawl: 0.44-0.61)")
     p.add_argument("--table", metavar="FILE.json", default=None,
                    help="per-cycle calibration table to use (or, with --calibrate, to write); "
                         "default: <stroke>.cycle.json next to the stroke file")
@@ -293,6 +297,17 @@ def _t(v: float | None) -> str:
     return "never" if v is None else f"at {v:.1f} s"
 
 
+def _print_budget(b: dict) -> None:
+    """The water budget's lines: the whole body, then each segment group taking over 1 W."""
+    eff = b["arms_froude_efficiency"]
+    print(f"  into the water   {b['water_w']:.0f} W (surface engine), {b['slip_w']:.0f} W of it "
+          f"slip; arms' thrust power {b['arms_thrust_power_w']:.0f} of {b['arms_water_w']:.0f} W"
+          f" (Froude efficiency {'n/a' if eff is None else f'{eff:.2f}'}; swimmers 0.44-0.61)")
+    rows = sorted(b["segments"].items(), key=lambda kv: -kv[1]["water_w"])
+    print("                   " + ", ".join(
+        f"{g} {r['water_w']:.0f} W ({r['slip_w']:.0f} slip)" for g, r in rows if r["water_w"] > 1.0))
+
+
 def run(args: argparse.Namespace) -> dict:
     layers = _layers(args)
     kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max,
@@ -364,7 +379,8 @@ def run(args: argparse.Namespace) -> dict:
                           progress=viewer is None, layers=layers, target=target,
                           swimmer=swimmer, control_hook=viewer if viewer is not None else dive,
                           on_frame=on_frame,
-                          cycle_table=cycle_table, speed=args.speed, approach=approach)
+                          cycle_table=cycle_table, speed=args.speed, approach=approach,
+                          budget=bool(getattr(args, "power", False)))
         finally:
             if viewer is not None:
                 viewer.close()
@@ -414,6 +430,8 @@ def run(args: argparse.Namespace) -> dict:
     if "roll_shoulders_deg" in s:
         print(f"  carriage         roll +-{s['roll_shoulders_deg']:.0f} deg shoulders, "
               f"+-{s['roll_hips_deg']:.0f} deg hips; trunk incline {s['trunk_incline_deg']:.0f} deg")
+    if "water_budget" in s:
+        _print_budget(s["water_budget"])
     print(f"  layers           {' + '.join(s['layers'])}")
     if "target" in s:
         t = s["target"]

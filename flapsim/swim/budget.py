@@ -1,0 +1,110 @@
+"""Where the muscles' power goes in the water: the surface engine's work per segment, split
+into the part that moves the body and the part that only stirs the water.
+
+The water's force ``F`` on a polygon whose centre moves at ``v`` takes ``-F . v`` from the
+swimmer. Written with the whole body's centre-of-mass velocity ``V`` as
+``-F . v = -F . V - F . (v - V)``, the first term is what the force does against the body's
+progress (negative where it pushes the body forwards: thrust) and the second is what the
+segment pays for moving *relative to* the body: the slip of a paddle through the water, a
+kick's up-and-down, the arm swept forwards in a recovery. For the arms (hands and
+forearms) this is the Froude efficiency that Toussaint et al. (1988) measured on swimmers
+(the useful part of the arms' power, 0.44-0.61 in the crawl): thrust power over the power
+the arms put into the water. A body gliding without moving its limbs has no slip at all
+(``tests/swim/test_budget.py``).
+
+Only the surface engine's drag, lift and friction are counted (the wave-making part, under
+1 N in the crawl, and buoyancy are not), sampled at the swim's recording rate.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from flapsim.swim.model import SEGMENTS, Swimmer
+
+#: the segments folded left/right into the groups reported, head to foot
+GROUPS: tuple[str, ...] = ("head", "thorax", "abdomen", "pelvis", "upper_arm", "forearm",
+                           "hand", "thigh", "shank", "foot")
+#: the groups whose Froude efficiency is the arms' (the paddles of the crawl and the pull)
+ARMS: tuple[str, ...] = ("forearm", "hand")
+
+
+def group_of(segment: str) -> str:
+    """The reported group of a segment name (``hand_l`` -> ``hand``)."""
+    return segment[:-2] if segment.endswith(("_l", "_r")) else segment
+
+
+def water_work_rates(sw: Swimmer, d: mujoco.MjData | None = None,
+                     scratch: mujoco.MjData | None = None) -> np.ndarray:
+    """(len(GROUPS), 2) the power [W] each group gives the water at this instant: the total
+    ``-sum F . v`` over its polygons and its part ``-sum F . V`` against the body's
+    centre-of-mass velocity ``V`` (the slip is their difference); both velocities through
+    the water's uniform flow.
+
+    The kinematics are computed afresh from ``d``'s positions and velocities in
+    ``scratch`` (an ``MjData`` of the same model; a new one if None), so that ``d`` itself,
+    which the control layers read between steps, is not touched."""
+    d = sw.data if d is None else d
+    m = sw.model
+    s = mujoco.MjData(m) if scratch is None else scratch
+    s.time = d.time
+    s.qpos[:] = d.qpos
+    s.qvel[:] = d.qvel
+    mujoco.mj_kinematics(m, s)
+    mujoco.mj_comPos(m, s)
+    mujoco.mj_comVel(m, s)
+    d = s
+    rep = sw.hydro.evaluate(d)
+    pb = sw.polygons.body
+    root = m.body_rootid[pb]
+    # each polygon centre's velocity: cvel is (angular, linear) at the root's subtree com
+    v = d.cvel[pb, 3:] + np.cross(d.cvel[pb, :3], rep.points - d.subtree_com[root])
+    mujoco.mj_subtreeVel(m, d)
+    # through the water: a uniform current (and the swimmer-induced flow) carries the body
+    # without work; sources and vortices are not subtracted
+    u = sw.flow.params[1:4]
+    V = d.subtree_linvel[m.body_rootid[sw.body["pelvis"]]] - u
+    F = rep.force
+    total = -np.einsum("ij,ij->i", F, v - u)
+    against = -(F @ V)
+    out = np.zeros((len(GROUPS), 2))
+    gi = _group_index(sw)
+    np.add.at(out[:, 0], gi[pb], total)
+    np.add.at(out[:, 1], gi[pb], against)
+    return out
+
+
+def _group_index(sw: Swimmer) -> np.ndarray:
+    """(nbody,) each body's row in :data:`GROUPS` (bodies that are no segment: row 0, and
+    they carry no polygons)."""
+    gi = np.zeros(sw.model.nbody, dtype=int)
+    for name in SEGMENTS:
+        gi[sw.body[name]] = GROUPS.index(group_of(name))
+    return gi
+
+
+def summarize(rates: np.ndarray) -> dict:
+    """The budget's JSON from (n, len(GROUPS), 2) sampled :func:`water_work_rates`: per group
+    the mean power into the water, its part against the progress and the slip [W]; the
+    whole body's; and the arms' Froude efficiency (None where the arms make no thrust)."""
+    r = np.asarray(rates, dtype=float)
+    if r.ndim != 3 or r.shape[1:] != (len(GROUPS), 2) or not len(r):
+        raise ValueError(f"expected (n, {len(GROUPS)}, 2) sampled rates, got {r.shape}")
+    mean = r.mean(axis=0)
+    groups = {g: {"water_w": float(mean[i, 0]), "against_progress_w": float(mean[i, 1]),
+                  "slip_w": float(mean[i, 0] - mean[i, 1])} for i, g in enumerate(GROUPS)}
+    arms = [GROUPS.index(g) for g in ARMS]
+    arm_total = float(mean[arms, 0].sum())
+    # the arms' thrust power is minus their work against the progress
+    arm_thrust = -float(mean[arms, 1].sum())
+    return {
+        "segments": groups,
+        "water_w": float(mean[:, 0].sum()),
+        "slip_w": float((mean[:, 0] - mean[:, 1]).sum()),
+        "arms_thrust_power_w": arm_thrust,
+        "arms_water_w": arm_total,
+        "arms_froude_efficiency": arm_thrust / arm_total if arm_thrust > 0 and arm_total > 0
+        else None,
+        "samples": int(len(r)),
+    }
