@@ -42,8 +42,8 @@ from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import parse_stroke, stroke_path
 
 # (kind, dof, index, half-width [deg]); kinds: "key" moves one keyframe value, "all"
-# shifts every key of a dof, "amp" scales a dof's keys about their mean (half-width as a
-# fraction)
+# shifts every key of a dof, "amp" scales a dof's keys about their mean and "warp" retimes
+# the arms' time under water (half-width as a fraction for both)
 _CRAWL = (
     [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd", "rot") for i in range(1, 6)]
     + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 6)]
@@ -54,8 +54,15 @@ _CRAWL = (
        ("amp", "knee_l.flex", 0, 0.8), ("all", "ankle_l.plantar", 0, 15.0),
        # -1..3 x the written twist: reversed, the upper trunk rolls with the hips, so the
        # shoulders roll more than the hips as swimmers' do (Psycharakis & Sanders 2008)
-       ("amp", "thoracic.twist", 0, 2.0), ("period", "", 0, 0.2)]
+       ("amp", "thoracic.twist", 0, 2.0), ("period", "", 0, 0.2),
+       # the arms' share of the cycle under water (entry to exit), +-35 %: swimmers pull
+       # for ~60-70 % of the cycle and recover over the water in the rest
+       ("warp", "arms", 0, 0.35)]
 )
+#: the crawl's arm joints whose keys the "warp" parameter retimes, and the key of the
+#: shoulder's flexion at which the hand leaves the water
+WARP_JOINTS = ("shoulder_l", "elbow_l", "wrist_l", "neck")
+WARP_EXIT = ("shoulder_l", "flex", 5)
 _BREAST = (
     [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd") for i in range(1, 6)]
     + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 5)]
@@ -120,6 +127,9 @@ def apply_params(raw: dict, spec: list, x: np.ndarray,
     for (kind, dof, idx, width), xi in zip(spec, x, strict=True):
         if kind == "period":
             continue
+        if kind == "warp":
+            _warp(out, 1.0 + width * xi)
+            continue
         keys = _dof_keys(out, dof)
         lo, hi = RANGES.get(dof, (-math.inf, math.inf))
         if kind == "key":
@@ -134,6 +144,23 @@ def apply_params(raw: dict, spec: list, x: np.ndarray,
         for k in keys:
             k[1] = float(np.clip(k[1], lo, hi))
     return out
+
+
+def _warp(raw: dict, factor: float) -> None:
+    """Retime the arms' keys in place: the phases from the entry (0) to the exit key
+    (:data:`WARP_EXIT`) stretched by ``factor``, the recovery's squeezed into the rest of
+    the cycle (piecewise linear, so every key keeps its order)."""
+    joint, dof, idx = WARP_EXIT
+    a = float(raw["keys"][joint][dof][idx][0])
+    b = float(np.clip(a * factor, 0.2, 0.8))
+
+    def g(ph: float) -> float:
+        return ph * b / a if ph <= a else b + (ph - a) * (1.0 - b) / (1.0 - a)
+
+    for j in WARP_JOINTS:
+        for keys in raw["keys"].get(j, {}).values():
+            for k in keys:
+                k[0] = g(float(k[0]))
 
 
 #: joint ranges the keys are clipped to [deg] (swimmer.xml)

@@ -28,6 +28,8 @@ GROUPS: tuple[str, ...] = ("head", "thorax", "abdomen", "pelvis", "upper_arm", "
                            "hand", "thigh", "shank", "foot")
 #: the groups whose Froude efficiency is the arms' (the paddles of the crawl and the pull)
 ARMS: tuple[str, ...] = ("forearm", "hand")
+#: ... and the legs' (the breaststroke's kick, the crawl's flutter kick)
+LEGS: tuple[str, ...] = ("shank", "foot")
 
 
 def group_of(segment: str) -> str:
@@ -87,24 +89,23 @@ def _group_index(sw: Swimmer) -> np.ndarray:
 def summarize(rates: np.ndarray) -> dict:
     """The budget's JSON from (n, len(GROUPS), 2) sampled :func:`water_work_rates`: per group
     the mean power into the water, its part against the progress and the slip [W]; the
-    whole body's; and the arms' Froude efficiency (None where the arms make no thrust)."""
+    whole body's; and the arms' and the legs' Froude efficiency (None where they make no
+    thrust)."""
     r = np.asarray(rates, dtype=float)
     if r.ndim != 3 or r.shape[1:] != (len(GROUPS), 2) or not len(r):
         raise ValueError(f"expected (n, {len(GROUPS)}, 2) sampled rates, got {r.shape}")
     mean = r.mean(axis=0)
     groups = {g: {"water_w": float(mean[i, 0]), "against_progress_w": float(mean[i, 1]),
                   "slip_w": float(mean[i, 0] - mean[i, 1])} for i, g in enumerate(GROUPS)}
-    arms = [GROUPS.index(g) for g in ARMS]
-    arm_total = float(mean[arms, 0].sum())
-    # the arms' thrust power is minus their work against the progress
-    arm_thrust = -float(mean[arms, 1].sum())
-    return {
-        "segments": groups,
-        "water_w": float(mean[:, 0].sum()),
-        "slip_w": float((mean[:, 0] - mean[:, 1]).sum()),
-        "arms_thrust_power_w": arm_thrust,
-        "arms_water_w": arm_total,
-        "arms_froude_efficiency": arm_thrust / arm_total if arm_thrust > 0 and arm_total > 0
-        else None,
-        "samples": int(len(r)),
-    }
+    out = {"segments": groups, "water_w": float(mean[:, 0].sum()),
+           "slip_w": float((mean[:, 0] - mean[:, 1]).sum())}
+    for name, members in (("arms", ARMS), ("legs", LEGS)):
+        rows = [GROUPS.index(g) for g in members]
+        total = float(mean[rows, 0].sum())
+        # the thrust power is minus the work against the progress
+        thrust = -float(mean[rows, 1].sum())
+        out[f"{name}_thrust_power_w"] = thrust
+        out[f"{name}_water_w"] = total
+        out[f"{name}_froude_efficiency"] = thrust / total if thrust > 0 and total > 0 else None
+    out["samples"] = int(len(r))
+    return out

@@ -72,6 +72,8 @@ def test_the_summary_adds_the_groups_and_takes_the_arms_efficiency() -> None:
     assert b["arms_thrust_power_w"] == pytest.approx(6.0)
     assert b["arms_froude_efficiency"] == pytest.approx(6.0 / 16.0)
     assert b["segments"]["thorax"]["slip_w"] == pytest.approx(0.0)
+    # no leg moved: no thrust, no efficiency
+    assert b["legs_thrust_power_w"] == 0.0 and b["legs_froude_efficiency"] is None
     with pytest.raises(ValueError):
         summarize(np.zeros((3, 2)))
 

@@ -299,10 +299,13 @@ def _t(v: float | None) -> str:
 
 def _print_budget(b: dict) -> None:
     """The water budget's lines: the whole body, then each segment group taking over 1 W."""
-    eff = b["arms_froude_efficiency"]
+    def eff(name: str) -> str:
+        e = b[f"{name}_froude_efficiency"]
+        return (f"{name}' thrust power {b[f'{name}_thrust_power_w']:.0f} of "
+                f"{b[f'{name}_water_w']:.0f} W (Froude efficiency {'n/a' if e is None else f'{e:.2f}'})")
+
     print(f"  into the water   {b['water_w']:.0f} W (surface engine), {b['slip_w']:.0f} W of it "
-          f"slip; arms' thrust power {b['arms_thrust_power_w']:.0f} of {b['arms_water_w']:.0f} W"
-          f" (Froude efficiency {'n/a' if eff is None else f'{eff:.2f}'}; swimmers 0.44-0.61)")
+          f"slip; {eff('arms')} (swimmers' crawl 0.44-0.61), {eff('legs')}")
     rows = sorted(b["segments"].items(), key=lambda kv: -kv[1]["water_w"])
     print("                   " + ", ".join(
         f"{g} {r['water_w']:.0f} W ({r['slip_w']:.0f} slip)" for g, r in rows if r["water_w"] > 1.0))
