@@ -25,7 +25,7 @@ import os
 import queue
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import mujoco
 import mujoco.viewer
@@ -77,6 +77,20 @@ def check_display() -> None:
     problem = None if os.environ.get("WAYLAND_DISPLAY") else display_problem()
     if problem:
         raise InputError(problem)
+
+
+def overlay_columns(labels: str, values: str, rate: float | None) -> tuple[str, str]:
+    """The overlay's two columns, each row's label beside its value: the caller's rows (a
+    value written over two lines has an empty label below its own; either column padded
+    to the other's length), then the real-time factor achieved (``rate``) and how to
+    leave (:data:`HELP`)."""
+    left = labels.split("\n") if labels else []
+    right = values.split("\n") if values else []
+    n = max(len(left), len(right))
+    left += [""] * (n - len(left))
+    right += [""] * (n - len(right))
+    return ("\n".join([*left, "real time", "leave"]),
+            "\n".join([*right, f"{rate:.2f}x" if rate is not None else "-", HELP]))
 
 
 class AnimalViewer:
@@ -152,9 +166,11 @@ class AnimalViewer:
             out.append(k)
         return out
 
-    def flash(self, item: Item, sim_time: float, seconds: float = FLASH_S) -> None:
+    def flash(self, item: Item | Callable[[], Item], sim_time: float,
+              seconds: float = FLASH_S) -> None:
         """Draw ``item`` (e.g. an :class:`~flapsim.render.scene.Arrow`) until ``sim_time +
-        seconds``."""
+        seconds``; a callable is asked for the item at every picture (an arrow that stays
+        on the moving animal rather than where the animal was)."""
         self._flashes.append((float(sim_time) + seconds, item))
 
     @property
@@ -229,11 +245,8 @@ class AnimalViewer:
         with self.handle.lock():
             if self.tracking:
                 self.rig.update(self.handle.cam, self.data, dt)
-            self._draw([*items, *(it for _, it in self._flashes)])
-        labels, values = texts if texts is not None else ("", "")
-        labels = (labels.rstrip("\n") + "\n" if labels else "") + "real time\nleave"
-        values = (values.rstrip("\n") + "\n" if values else "") + (
-            f"{rate:.2f}x" if rate is not None else "-") + f"\n{HELP}"
+            self._draw([*items, *(it() if callable(it) else it for _, it in self._flashes)])
+        labels, values = overlay_columns(*(texts if texts is not None else ("", "")), rate)
         self.handle.set_texts((None, mujoco.mjtGridPos.mjGRID_TOPLEFT, labels, values))
         self.handle.sync()
         self.frames += 1

@@ -97,3 +97,49 @@ def test_pictures_behind_real_time_are_dropped_not_slowed(monkeypatch):
     assert v.show(late + 0.5 * frame) and (w.synced, v.dropped) == (3, 1)
     assert clock[0] - 100.0 == pytest.approx(late + 0.5 * frame)
     assert (v.frames, v.dropped) == (3, 1)
+
+
+def test_the_overlay_keeps_each_label_beside_its_value():
+    from flapsim.render.viewer import HELP, overlay_columns
+
+    # the dove's overlay: the keys' help runs over two lines, its label has an empty row below
+    labels, values = overlay_columns("steering\nelevation\nkeys\n",
+                                     "+10 deg/s\n+0 deg\narrows: steer,\nInsert: push", 0.99)
+    left, right = labels.split("\n"), values.split("\n")
+    assert len(left) == len(right) == 6
+    row = dict(zip(left, right, strict=True))
+    assert row["elevation"] == "+0 deg" and row["keys"] == "arrows: steer,"
+    assert row["real time"] == "0.99x" and row["leave"] == HELP
+    # no rows of the caller's, or a value longer than its labels: padded, never shifted
+    assert overlay_columns("", "", None) == ("real time\nleave", f"-\n{HELP}")
+    labels, values = overlay_columns("a", "1\n2\n3", 1.0)
+    assert labels.split("\n").index("real time") == values.split("\n").index("1.00x") == 3
+
+
+def test_a_flash_given_as_a_callable_follows_the_animal(monkeypatch):
+    from flapsim.render import viewer as V
+
+    clock = [0.0]
+    monkeypatch.setattr(V.time, "perf_counter", lambda: clock[0])
+    monkeypatch.setattr(V.time, "sleep", lambda s: clock.__setitem__(0, clock[0] + s))
+    m = mujoco.MjModel.from_xml_string(XML)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    w = _Window(m)
+    v = AnimalViewer(m, d, "box", launch=lambda *a, **kw: w)
+    v.tracking = False  # the stand-in camera has no rig to move
+    # a push arrow ending at the box, and one left where the box was
+    v.flash(lambda: V.Arrow(d.xpos[1] - [0.8, 0, 0], [0.7, 0, 0]), 0.0)
+    v.flash(V.Arrow(d.xpos[1] - [0.8, 0, 0], [0.7, 0, 0], rgba=(0, 0, 1, 1)), 0.0)
+    centres = []
+    for x in (0.0, 3.5):  # the box flies on 3.5 m (half a second of a dove's flight)
+        d.qpos[0] = x
+        mujoco.mj_forward(m, d)
+        assert v.show(0.1 + x / 7.0)
+        g = [w.user_scn.geoms[i] for i in range(w.user_scn.ngeom)]
+        red = [gg for gg in g if gg.rgba[0] > 0.5]
+        centres.append(np.mean([gg.pos[0] for gg in red]))
+        blue = [gg for gg in g if gg.rgba[2] > 0.5 and gg.rgba[0] < 0.5]
+        assert np.mean([gg.pos[0] for gg in blue]) < 1.0  # the fixed one stayed behind
+    # the callable's arrow moved with the box, by the box's 3.5 m
+    assert centres[1] - centres[0] == pytest.approx(3.5, abs=1e-6)

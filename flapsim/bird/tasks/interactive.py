@@ -165,10 +165,13 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 if g:
                     h = float(np.arctan2(v_prev[1], v_prev[0]))
                     _gust(fl, t, v_prev)
-                    # the gust blows from the left: a blue arrow toward the bird
+                    # the gust blows from the left: a blue arrow toward the bird, drawn
+                    # beside it as it flies on (the chase camera leaves a fixed one behind)
                     across = np.array([-np.sin(h), np.cos(h), 0.0])
-                    view.flash(Arrow(e_pos(fl) + 0.9 * across, -0.6 * across, width=0.025,
-                                     rgba=(0.15, 0.45, 1.0, 1.0)), t, GUST_S + FLASH_S)
+                    view.flash(lambda a=across: Arrow(shown.xpos[fl.dove.trunk] + 0.9 * a,
+                                                      -0.6 * a, width=0.025,
+                                                      rgba=(0.15, 0.45, 1.0, 1.0)),
+                               t, GUST_S + FLASH_S)
             for point in view.pending_clicks() if view is not None else ():
                 if isinstance(target, CruiseTarget):  # a path is followed, not steered
                     _fly_toward(target, cmd, point, positions[-1], t)
@@ -179,9 +182,11 @@ def view_flight(seconds: float, db=None, method: str = "lwlr", k: int | None = N
                 heading = float(np.arctan2(v_prev[1], v_prev[0]))
                 force = PushSpec(t, PUSH_N, "left").world_force(heading)
                 push = cycle.Push(fl.dove.trunk, force, int(round(0.1 / dt)))
-                # a red arrow along the push, ending at the trunk, 0.1 m per newton
+                # a red arrow along the push, ending at the trunk as it flies on, 0.1 m per
+                # newton
                 f = np.asarray(force, float)
-                view.flash(Arrow(e_pos(fl) - 0.1 * f, 0.1 * f * 0.9, width=0.025), t)
+                view.flash(lambda f=f: Arrow(shown.xpos[fl.dove.trunk] - 0.1 * f, 0.1 * f * 0.9,
+                                             width=0.025), t)
             if isinstance(target, CruiseTarget):
                 # the commands integrate into the cruise target's heading and altitude
                 target.speed = cmd.speed
@@ -264,11 +269,6 @@ def _place(m: mujoco.MjModel, shown: mujoco.MjData, qpos: np.ndarray, draw) -> N
     if draw is not None:
         draw.apply(shown)
     mujoco.mj_forward(m, shown)
-
-
-def e_pos(fl) -> np.ndarray:
-    """The trunk's position now, m."""
-    return fl.data.qpos[0:3].copy()
 
 
 def _dummy_path():
