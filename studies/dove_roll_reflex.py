@@ -65,7 +65,7 @@ def fly(fl: DoveFlight, ctrl: np.ndarray, pair: tuple[int, int], kd: float, kr: 
             "servo_power_w": work / float(d.time)}
 
 
-def main(argv: list[str] | None = None) -> None:
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--dof", default="shoulder_twist",
                     help="the DOF pair moved apart (a name from DOF_NAMES without l_/r_)")
@@ -73,6 +73,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--kr", default="0", help="roll gains, rad per rad")
     ap.add_argument("--wingbeats", type=int, default=8)
     ap.add_argument("--json", default=None)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = parser()
     a = ap.parse_args(argv)
     if f"l_{a.dof}" not in DOF_NAMES:
         ap.error(f"--dof must be one of {sorted({n[2:] for n in DOF_NAMES if n[1] == '_'})}")
