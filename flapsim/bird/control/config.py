@@ -113,6 +113,10 @@ class ControllerConfig:
     """Weight 0..1000 of the wingbeat's start state beside dS in the regression's choice of
     neighbours (0: dS only, the paper's eq. 3; for databases that mix cruise and disturbed pre-
     states)."""
+    lateral_r: float = 0.0
+    """Input cost of the once-a-beat lateral regulator added to each wingbeat's reference (an
+    LQR on the lateral wingbeat map measured at load, flapsim.bird.control.lateral; 0: off,
+    the paper's; smaller: stronger; docs/flight.md)."""
 
     def __post_init__(self) -> None:
         c = self.carry
@@ -144,6 +148,9 @@ class ControllerConfig:
         w = self.state_weight
         if not (math.isfinite(w) and 0.0 <= w <= 1e3):
             raise InputError(f"controller state_weight must be 0..1000, got {w}")
+        lr = self.lateral_r
+        if isinstance(lr, bool) or not (math.isfinite(lr) and lr >= 0.0):
+            raise InputError(f"controller lateral_r must be an input cost >= 0 (0: off), got {lr!r}")
 
     @classmethod
     def for_dove(cls, feathers: str = "rigid", predict: str = "simulate") -> ControllerConfig:

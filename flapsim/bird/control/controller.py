@@ -25,6 +25,7 @@ from tqdm import tqdm
 from flapsim.bird.body.model import Dove
 from flapsim.bird.control.config import LOOKAHEAD_MODES, MAX_REFINE, REFINE_GOALS, ControllerConfig
 from flapsim.bird.control.database import load_database, read_header
+from flapsim.bird.control.lateral import N_STATE, TRUNK, LateralRegulator, build_regulator, lateral_state
 from flapsim.bird.control.lookahead import ReferenceLookahead
 from flapsim.bird.control.prediction import COARSE_RATE_HZ, PREDICT_MODES, CoarsePredictor, S0Predictor
 from flapsim.bird.control.regression import (
@@ -154,6 +155,13 @@ class WingbeatController:
     answer usually lands that close, and a correction costs a whole wingbeat's simulation."""
     config: ControllerConfig | None = None
     """The configuration :func:`load_controller` built it from (provenance), None otherwise."""
+    lateral: LateralRegulator | None = None
+    """None (default, the paper's): the reference wingbeat is flown as it is. A
+    :class:`~flapsim.bird.control.lateral.LateralRegulator`: its once-a-beat change for the
+    lateral state at the wingbeat's start, against the last wingbeat's target, is added to the
+    reference before S0 is simulated, and the regression's answer is added to that."""
+    _lateral_dP: np.ndarray | None = field(default=None, repr=False)
+    _lateral_target: np.ndarray | None = field(default=None, repr=False)
     _last: np.ndarray | None = field(default=None, repr=False)
     _predict: str = field(default="simulate", repr=False)
 
@@ -174,10 +182,14 @@ class WingbeatController:
             raise InputError(f"the wingbeat carry must be a share 0..1, got {self.carry}")
         if self.lo is None or self.hi is None:
             self.lo, self.hi = cycle.model_dof_ranges(self.flight)
+        if self.lateral is not None and self.lookahead is not None:
+            raise InputError("the lateral regulator needs each wingbeat's start state: fly it "
+                             "without the look-ahead (lookahead = \"off\")")
 
     def reset(self) -> None:
         """Forget the last wingbeat (a new flight)."""
         self._last = None
+        self._lateral_dP = self._lateral_target = None
         if self.predictor is not None:
             self.predictor.reset()
         if self.lookahead is not None:
@@ -189,8 +201,12 @@ class WingbeatController:
 
     def _reference_after(self, last: np.ndarray | None) -> np.ndarray:
         if self.carry == 0.0 or last is None:
-            return self.P0
-        return self.P0 + self.carry * (last - self.P0)
+            base = self.P0
+        else:
+            base = self.P0 + self.carry * (last - self.P0)
+        if self._lateral_dP is not None:
+            base = base + self._lateral_dP
+        return base
 
     @property
     def ref(self) -> ReferenceWingbeat:
@@ -207,6 +223,12 @@ class WingbeatController:
             if snap is not None:
                 cycle.restore(fl, snap)
             S_now = fl.reduced_state()  # the wingbeat's start state, as the samples' S
+        if self.lateral is not None:
+            if snap is not None:
+                cycle.restore(fl, snap)
+            xt = self._lateral_target
+            self._lateral_dP = self.lateral.offset(lateral_state(fl),
+                                                   np.zeros(N_STATE) if xt is None else xt)
         snap = snap or cycle.snapshot(fl)
         base = self.reference_params()
         if self.predictor is None:
@@ -233,7 +255,15 @@ class WingbeatController:
             end = cycle.fly_cycle(fl, snap, Pp, self.ref, record=record, push=push)
         else:
             cycle.restore(fl, end.snapshot)  # the chosen wingbeat's simulation was the flight
-        self._last = Pp
+        # what the next wingbeat carries is the controller's choice, not the regulator's
+        # change, which it makes afresh from the next start state
+        self._last = Pp if self._lateral_dP is None else Pp - self._lateral_dP
+        if self.lateral is not None:
+            # the next wingbeat regulates toward this one's target (its bank, sideslip and
+            # rates); its own target needs S0, which needs the regulated reference
+            xt = np.zeros(N_STATE)
+            xt[:len(TRUNK)] = S_t[list(TRUNK)]
+            self._lateral_target = xt
         if self.predictor is not None:
             self.predictor.flown(end)
         return ControlStep(Pp, dS, S_t, e0, end, projected, tried)
@@ -605,8 +635,16 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     ctl = WingbeatController(flight, reg, P0, carry=float(config.carry), refine=config.refine,
                              refine_goal=refine_goal, refine_stop=float(config.refine_stop),
                              config=config, _predict=predict)
-    ctl.lookahead = make_lookahead(flight, config.lookahead, config.refine,
-                                   "coarse" if rate else predict)
+    if config.lateral_r:
+        if config.lookahead == "on":
+            raise InputError("the lateral regulator (lateral_r) needs each wingbeat's start "
+                             "state: set lookahead = \"off\" or \"auto\"")
+        cfg = FlightConfig(table=flight.table, speed=database_speed(path, flight.dove.feathers),
+                           pitch_deg=database_pitch(path, flight.dove.feathers))
+        ctl.lateral = build_regulator(flight, P0, cfg, float(config.lateral_r))
+    else:
+        ctl.lookahead = make_lookahead(flight, config.lookahead, config.refine,
+                                       "coarse" if rate else predict)
     if predict == "regression":
         ctl.predictor = _predictor(db, path, predict_every)
     elif rate:
