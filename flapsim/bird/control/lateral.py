@@ -14,7 +14,8 @@ per difference; :func:`lqr` is the discrete linear-quadratic regulator on them, 
 :class:`LateralRegulator` adds its ``-K x`` to the wingbeat the learned controller starts from
 (:attr:`~flapsim.bird.control.config.ControllerConfig.lateral_r`). Only the wingbeat's
 parameters change, once a beat: the forces are still the feathers' and the servos' torques at
-the joints. docs/design/flight.md, "The lateral wingbeat map", gives the numbers.
+the joints. docs/design/flight.md, "The lateral wingbeat map, and a once-a-beat regulator on
+it", gives the numbers.
 """
 
 from __future__ import annotations
