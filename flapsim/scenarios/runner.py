@@ -257,15 +257,15 @@ def table1_databases(sizes: tuple[int, ...], cache: Path, seed: int, feathers: s
 
 def paper_protocol(o: EvalOptions) -> EvalOptions:
     """``o`` flown as the paper's controller whatever else was asked: S0 simulated at the
-    flight's rate, the regression's answer flown as it is from P0 every wingbeat with the
-    paper's fixed neighbourhood, the bank of the wingbeat's end, the trim's angle of attack in
-    turns, the speed asked everywhere, independent speed and height loops, and the dove's
-    default bank cap (Table I's figure of eight flies the same at 45 and 60 deg:
+    flight's rate, no lateral regulator, the regression's answer flown as it is from P0 every
+    wingbeat with the paper's fixed neighbourhood, the bank of the wingbeat's end, the trim's
+    angle of attack in turns, the speed asked everywhere, independent speed and height loops,
+    and the dove's default bank cap (Table I's figure of eight flies the same at 45 and 60 deg:
     docs/design/flight.md, "A 60 deg bank by default")."""
     dove = PathControlConfig.for_dove(o.feathers)
     controller = o.controller if o.controller is not None else _library_controller(o)
     controller = dataclasses.replace(controller, k_dense_share=0.0, carry=0.0, refine=0,
-                                     reference_hz=0.0)
+                                     reference_hz=0.0, lateral="off")
     path = dataclasses.replace(o.path_control or dove, bank_lead_s=0.0, aoa_per_g_deg=0.0,
                                turn_load_factor=0.0, climb_per_speed_deficit=0.0,
                                max_bank_deg=dove.max_bank_deg)

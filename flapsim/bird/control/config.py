@@ -75,6 +75,12 @@ DEFAULT_REFINE_GOAL = {"rigid": "full", "modal": "full"}
 
 #: :attr:`ControllerConfig.lookahead`'s modes.
 LOOKAHEAD_MODES = ("auto", "on", "off")
+#: :attr:`ControllerConfig.lateral`'s modes.
+LATERAL_MODES = ("auto", "on", "off")
+#: The lateral regulator's input cost: the cruise dove completes 8 of the 22 flight scenarios
+#: with it, 4 without (docs/design/flight.md, "The lateral wingbeat map, and a once-a-beat
+#: regulator on it").
+DEFAULT_LATERAL_R = 0.01
 
 
 @dataclass(frozen=True)
@@ -113,10 +119,13 @@ class ControllerConfig:
     """Weight 0..1000 of the wingbeat's start state beside dS in the regression's choice of
     neighbours (0: dS only, the paper's eq. 3; for databases that mix cruise and disturbed pre-
     states)."""
-    lateral_r: float = 0.0
-    """Input cost of the once-a-beat lateral regulator added to each wingbeat's reference (an
-    LQR on the lateral wingbeat map measured at load, flapsim.bird.control.lateral; 0: off,
-    the paper's; smaller: stronger; docs/flight.md)."""
+    lateral: str = "auto"
+    """The once-a-beat lateral regulator added to each wingbeat's reference (an LQR on the
+    lateral wingbeat map measured at load, flapsim.bird.control.lateral): "on", "off" (the
+    paper's) or "auto": on for a database sampled around the cruise capture (train --cruise),
+    whose dove spirals without it, off otherwise (docs/flight.md)."""
+    lateral_r: float = DEFAULT_LATERAL_R
+    """The lateral regulator's input cost, > 0 (smaller: stronger; docs/flight.md)."""
 
     def __post_init__(self) -> None:
         c = self.carry
@@ -148,9 +157,13 @@ class ControllerConfig:
         w = self.state_weight
         if not (math.isfinite(w) and 0.0 <= w <= 1e3):
             raise InputError(f"controller state_weight must be 0..1000, got {w}")
+        if self.lateral not in LATERAL_MODES:
+            raise InputError(f"controller lateral must be one of {', '.join(LATERAL_MODES)}, "
+                             f"got {self.lateral!r}")
         lr = self.lateral_r
-        if isinstance(lr, bool) or not (math.isfinite(lr) and lr >= 0.0):
-            raise InputError(f"controller lateral_r must be an input cost >= 0 (0: off), got {lr!r}")
+        if isinstance(lr, bool) or not (math.isfinite(lr) and lr > 0.0):
+            raise InputError(f"controller lateral_r must be an input cost > 0 (lateral = \"off\" "
+                             f"turns the regulator off), got {lr!r}")
 
     @classmethod
     def for_dove(cls, feathers: str = "rigid", predict: str = "simulate") -> ControllerConfig:

@@ -635,10 +635,10 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     ctl = WingbeatController(flight, reg, P0, carry=float(config.carry), refine=config.refine,
                              refine_goal=refine_goal, refine_stop=float(config.refine_stop),
                              config=config, _predict=predict)
-    if config.lateral_r:
+    if lateral_on(config, db.header):
         if config.lookahead == "on":
-            raise InputError("the lateral regulator (lateral_r) needs each wingbeat's start "
-                             "state: set lookahead = \"off\" or \"auto\"")
+            raise InputError("the lateral regulator needs each wingbeat's start state: set "
+                             "lookahead = \"off\" or \"auto\", or lateral = \"off\"")
         cfg = FlightConfig(table=flight.table, speed=database_speed(path, flight.dove.feathers),
                            pitch_deg=database_pitch(path, flight.dove.feathers))
         ctl.lateral = build_regulator(flight, P0, cfg, float(config.lateral_r))
@@ -650,6 +650,16 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     elif rate:
         ctl.predictor = CoarsePredictor(rate)
     return ctl
+
+
+def lateral_on(config: ControllerConfig, header: dict) -> bool:
+    """Whether a controller under ``config`` for the database with ``header`` flies the lateral
+    regulator: ``lateral`` "on", or "auto" and the database sampled around the cruise capture
+    (its dove's spiral mode grows 1.34x a wingbeat and the database's wingbeats do not hold it;
+    the paper's and the robofly dove's fly as the paper's, without one)."""
+    if config.lateral != "auto":
+        return config.lateral == "on"
+    return (header.get("config") or {}).get("capture_preset") == "cruise"
 
 
 def reference_rate(flight: DoveFlight, predict: str, config: ControllerConfig) -> float:

@@ -12,7 +12,7 @@ parameter up, the right's down: 12 inputs, each in steps of :data:`SCALE_STEP` o
 :data:`SHIFT_STEP`). :func:`linearise` measures (A, B) by central differences, one wingbeat
 per difference; :func:`lqr` is the discrete linear-quadratic regulator on them, and
 :class:`LateralRegulator` adds its ``-K x`` to the wingbeat the learned controller starts from
-(:attr:`~flapsim.bird.control.config.ControllerConfig.lateral_r`). Only the wingbeat's
+(:attr:`~flapsim.bird.control.config.ControllerConfig.lateral`). Only the wingbeat's
 parameters change, once a beat: the forces are still the feathers' and the servos' torques at
 the joints. docs/design/flight.md, "The lateral wingbeat map, and a once-a-beat regulator on
 it", gives the numbers.
@@ -179,6 +179,6 @@ def build_regulator(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r: float)
     try:
         K = lqr(A, B, r)
     except (np.linalg.LinAlgError, ValueError) as e:
-        raise SimulationError(f"no lateral regulator for this dove's map ({e}): fly without "
-                              "lateral_r") from None
+        raise SimulationError(f"no lateral regulator for this dove's map ({e}): fly it with "
+                              "lateral = \"off\"") from None
     return LateralRegulator(K, input_directions(len(P0))[1], A, B)

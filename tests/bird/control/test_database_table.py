@@ -145,6 +145,8 @@ def test_the_cruise_database_flies_its_own_dove_and_reference():
         assert np.allclose(fl.ref.coef, cruise.coef, rtol=0, atol=1e-9)
         assert fl.ref.period == pytest.approx(cruise.period, rel=1e-12)
         assert ctl.P0[2 * 12 + 1] == pytest.approx(np.radians(CRUISE.tail_bias_deg))
+        # its dove spirals without the lateral regulator, so a cruise database flies with it
+        assert ctl.lateral is not None and ctl.lookahead is None
     finally:
         fl.close()
 

@@ -111,10 +111,20 @@ def test_the_regulator_levels_a_pushed_dove_that_the_reference_wingbeat_lets_rol
     assert np.abs(ends["regulated"][-4:]).max() < 8.0
 
 
-def test_the_regulator_is_off_by_default_and_refused_where_it_cannot_run():
-    assert ControllerConfig().lateral_r == 0.0
-    with pytest.raises(InputError, match="lateral_r"):
-        ControllerConfig(lateral_r=-0.1)
+def test_the_regulator_is_on_for_cruise_databases_only_and_refused_where_it_cannot_run():
+    from flapsim.bird.control.controller import lateral_on
+
+    cruise, paper = {"config": {"capture_preset": "cruise"}}, {"config": {"capture_preset": None}}
+    auto = ControllerConfig()
+    assert auto.lateral == "auto"
+    assert lateral_on(auto, cruise) and not lateral_on(auto, paper) and not lateral_on(auto, {})
+    assert lateral_on(dataclasses.replace(auto, lateral="on"), paper)
+    assert not lateral_on(dataclasses.replace(auto, lateral="off"), cruise)
+    for bad in (0.0, -0.1, float("nan")):
+        with pytest.raises(InputError, match="lateral_r"):
+            ControllerConfig(lateral_r=bad)
+    with pytest.raises(InputError, match="lateral must be one of"):
+        ControllerConfig(lateral="yes")
     with pytest.raises(InputError, match="input cost"):
         lateral.build_regulator(None, P0, CFG, r=0.0)
 
@@ -127,7 +137,8 @@ def test_a_controller_with_the_regulator_adds_it_to_the_reference(flight):
     from flapsim.bird.control.targets import CruiseTarget, trim_of_base_flight
     from flapsim.bird.flight.wingbeat import mirror_params
 
-    cfg = dataclasses.replace(ControllerConfig(), lateral_r=0.3, lookahead="off", carry=0.0)
+    cfg = dataclasses.replace(ControllerConfig(), lateral="on", lateral_r=0.3, lookahead="off",
+                              carry=0.0)
     ctl = load_controller(flight, config=cfg)
     assert ctl.lateral is not None and ctl.lookahead is None
     trim = trim_of_base_flight(flight, ctl.P0)
