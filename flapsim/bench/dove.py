@@ -33,6 +33,10 @@ from flapsim.bird.body.model import Dove
 from flapsim.bird.control.controller import (
     BaseController,
     attach_predictor,
+    database_dove,
+    database_pitch,
+    database_speed,
+    database_table,
     fly_controlled,
     load_controller,
     make_lookahead,
@@ -223,8 +227,12 @@ def run_controller(args: argparse.Namespace) -> dict:
     n = max(4, int(getattr(args, "wingbeats", None) or 20))
     db = getattr(args, "db", None)
     feathers = getattr(args, "feathers", None) or "rigid"
-    dove = Dove.load(feathers=feathers)
-    fl = DoveFlight(dove)
+    # the database's own dove, feather table, speed and pitch (a cruise database's dove has its
+    # induced flow and flies at 8.5 m/s)
+    dove = database_dove(db, feathers) if db else Dove.load(feathers=feathers)
+    cfg = FlightConfig(table=database_table(db, feathers), speed=database_speed(db, feathers),
+                       pitch_deg=database_pitch(db, feathers))
+    fl = DoveFlight(dove, table=cfg.table)
     try:
         ctl = load_controller(fl, db)
         coarse = load_controller(fl, db, predict="coarse")
@@ -236,22 +244,25 @@ def run_controller(args: argparse.Namespace) -> dict:
         # the paper's S0 (simulated on the flight at its own rate) and every correction
         # simulated (at least one: the look-ahead runs beside them)
         ahead_refine = max(ctl.refine, 1)
+        # (without the lateral regulator, which needs each wingbeat's start: the look-ahead
+        # cannot run beside it)
         every = dataclasses.replace(ctl, predictor=None, refine=ahead_refine, refine_stop=0.0,
-                                    _predict="simulate")
+                                    _predict="simulate", lateral=None)
         # with the next wingbeat's reference simulated on a second core: the same flight, sooner
         ahead = dataclasses.replace(every, lookahead=make_lookahead(fl, "on", ahead_refine, "simulate"))
         flown, per_wingbeat = {}, {}
-        trim = trim_of_base_flight(fl, ctl.P0)
+        trim = trim_of_base_flight(fl, ctl.P0, cfg)
+        target = dict(altitude=cfg.height, speed=cfg.speed)
         res = {}
         for name, c in (("learned", ctl), ("learned_every_correction", every),
                         ("learned_lookahead", ahead), ("learned_coarse", coarse),
                         ("learned_regression", reg), *refined, ("base", BaseController(fl, ctl.P0))):
-            start_cruise(fl, ctl.P0)
-            fly_controlled(c, CruiseTarget(trim, altitude=10.0), 1)  # warm-up: the coarse twin
-            start_cruise(fl, ctl.P0)
+            start_cruise(fl, ctl.P0, cfg)
+            fly_controlled(c, CruiseTarget(trim, **target), 1)  # warm-up: the coarse twin
+            start_cruise(fl, ctl.P0, cfg)
             if hasattr(c, "reset"):
                 c.reset()  # the same start for every variant: their flights compare to the bit
-            f = fly_controlled(c, CruiseTarget(trim, altitude=10.0), n)
+            f = fly_controlled(c, CruiseTarget(trim, **target), n)
             flown[name] = f.positions
             # wingbeats' worth of steps simulated per wingbeat flown: the reference (where
             # simulated: the look-ahead's on its own core; on a coarser copy, its share of the
@@ -263,7 +274,7 @@ def run_controller(args: argparse.Namespace) -> dict:
                 for s in f.steps]))
             res[name] = {"wingbeats": n, "simulated_s": f.simulated_s, "wall_s": f.wall_time,
                          "real_time_factor": f.simulated_s / f.wall_time}
-        start_cruise(fl, ctl.P0)
+        start_cruise(fl, ctl.P0, cfg)
         snap = cycle.snapshot(fl)
         m = fl.model
         ctrl, _, _ = control_table(fl.ref, ctl.P0, m.opt.timestep, fl.kp, fl.kv)
@@ -288,6 +299,9 @@ def run_controller(args: argparse.Namespace) -> dict:
     out = {
         "target": "controller",
         "feathers": feathers,
+        "db": str(db) if db else "bundled",
+        "lateral_regulator": ctl.lateral is not None,
+        "speed": cfg.speed,
         "database_samples": ctl.regressor.n,
         "method": ctl.regressor.method,
         "k": ctl.regressor.k,
@@ -319,7 +333,8 @@ def run_controller(args: argparse.Namespace) -> dict:
     }
     r = out["over_bare_rollout"]
     print(f"learned controller, {feathers} feathers ({out['method']}, k={out['k']}, "
-          f"{out['database_samples']} samples): "
+          f"{out['database_samples']} samples{', lateral regulator' if ctl.lateral else ''}, "
+          f"{cfg.speed:g} m/s): "
           f"{out['real_time_factor']:.1f}x real time, {out['cost_over_base']:.2f}x the base "
           f"controller's cost per wingbeat; regression {query_ms:.2f} ms per wingbeat")
     print(f"  S0 at the flight's rate and every correction simulated ({ahead_refine}): "

@@ -130,3 +130,14 @@ def test_the_modal_doves_bench_runs_and_reports_its_ratios(target, tmp_path):
     r = _bench(target, tmp_path, "--feathers", "modal")
     assert r["feathers"] == "modal"
     CHECKS[target](r)
+
+
+def test_the_cruise_doves_controller_bench_flies_its_own_dove(tmp_path):
+    """A cruise database's dove has its induced flow (another model than the default's, which
+    its database would refuse), flies at the database's 8.5 m/s and with its lateral regulator;
+    the variants that cannot fly the regulator (the look-ahead's pair) fly without it."""
+    from flapsim.bird.control.controller import bundled_database_path
+
+    r = _bench("controller", tmp_path, "--db", str(bundled_database_path("cruise")))
+    assert r["lateral_regulator"] and r["speed"] == 8.5
+    CHECKS["controller"](r)
