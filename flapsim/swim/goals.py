@@ -315,6 +315,10 @@ def _read_rows(p: FilePath, ncols: tuple[int, ...], what: str) -> list[list[floa
     return rows
 
 
+#: The largest path coordinate accepted, m.
+MAX_PATH_COORD_M = 1e6
+
+
 @dataclass
 class Path:
     """Follow a polyline (n, 2) [m]: steer at the point ``lookahead`` [m] further along
@@ -333,6 +337,10 @@ class Path:
             raise InputError(f"a path needs at least two (x, y) points, got shape {p.shape}")
         if not np.all(np.isfinite(p)):
             raise InputError("path points must be finite")
+        if np.abs(p).max() > MAX_PATH_COORD_M:
+            # far beyond any pool or lake; larger values overflow the segment lengths
+            raise InputError(f"path points must lie within {MAX_PATH_COORD_M:g} m of the origin "
+                             f"(metres), got {np.abs(p).max():g}")
         seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
         keep = np.concatenate([[True], seg > 1e-9])  # drop repeated points
         self.points = p[keep]

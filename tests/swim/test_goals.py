@@ -46,7 +46,9 @@ def test_path_files(tmp_path):
     assert p.length == pytest.approx(10.0)
     for text, match in (("0,0\n1,nope\n", "line 2"), ("0,0\n1,2,3\n", "2 numbers"),
                         ("0,0\n", "at least two"), ("0,0\n0,0\n", "two distinct"),
-                        ("0,0\n1,nan\n", "non-finite")):
+                        ("0,0\n1,nan\n", "non-finite"),
+                        # finite, but their difference overflows a float
+                        ("-1e308,0\n1e308,0\n", "within 1e\\+06 m")):
         bad = tmp_path / "bad.csv"
         bad.write_text(text)
         with pytest.raises(DataFileError, match=match):
