@@ -229,7 +229,7 @@ def run_controller(args: argparse.Namespace) -> dict:
     feathers = getattr(args, "feathers", None) or "rigid"
     # the database's own dove, feather table, speed and pitch (a cruise database's dove has its
     # induced flow and flies at 8.5 m/s)
-    dove = database_dove(db, feathers) if db else Dove.load(feathers=feathers)
+    dove = database_dove(db, feathers)
     cfg = FlightConfig(table=database_table(db, feathers), speed=database_speed(db, feathers),
                        pitch_deg=database_pitch(db, feathers))
     fl = DoveFlight(dove, table=cfg.table)
