@@ -81,7 +81,7 @@ def cases(a: argparse.Namespace) -> list[tuple[str, float, Task]]:
 def verdict(kind: str, task: Task, r: TaskResult) -> bool:
     """Followed (a circle or climb) or survived (a push)."""
     if kind.startswith("push"):
-        return bool(r.ok and task.path.distance(r.positions[-1]) <= PUSH_BACK_M)
+        return bool(r.ok and task.path.off_path(r.positions[-1]) <= PUSH_BACK_M)
     return r.ok
 
 

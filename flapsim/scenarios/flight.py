@@ -34,7 +34,8 @@ PUSH_FORCES_N = (3.0, 6.0, 8.0, 10.0, 12.0)
 PUSH_TUBE_M = 10.0
 """A push of 8 N for 0.1 s changes a 0.17 kg dove's velocity by 4.7 m/s (two thirds of its
 speed): it is carried metres off whatever it does, so surviving means staying within this
-tube, reaching the path's end and being back on it (:data:`PUSH_BACK_M`)."""
+tube, reaching the path's end and being back on it (:data:`PUSH_BACK_M`: the last wingbeat's end
+from the path's line, :meth:`~flapsim.bird.tasks.path_control.FlightPath.off_path`)."""
 PUSH_BACK_M = 1.5
 LEFT_PLUCKS = {"plucked-3": (2, 5, 8), "plucked-4": (2, 5, 7, 8)}
 """Primaries plucked on the left wing, counted from the outermost (the paper's Fig. 15)."""
@@ -223,7 +224,7 @@ def run_pushes(sc: Scenario, opt: EvalOptions) -> dict:
         r = _fly_task(task, opt, record=bool(opt.video_dir))
         files += _outputs(sc, opt, task, r, tag=f"{f:g}N")
         sim += r.metrics["simulated_s"]
-        back = task.path.distance(r.positions[-1])
+        back = task.path.off_path(r.positions[-1])
         survived = r.ok and back <= PUSH_BACK_M
         table.append({"newtons": f, "status": r.status, "survived": survived,
                       "max_path_distance": r.metrics.get("max_path_distance"),

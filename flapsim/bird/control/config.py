@@ -81,6 +81,11 @@ LATERAL_MODES = ("auto", "on", "off")
 #: with it, 4 without (docs/design/flight.md, "The lateral wingbeat map, and a once-a-beat
 #: regulator on it").
 DEFAULT_LATERAL_R = 0.01
+#: :attr:`ControllerConfig.longitudinal`'s modes.
+LONGITUDINAL_MODES = ("auto", "on", "off")
+#: The longitudinal regulator's input cost (docs/design/flight.md, "A longitudinal regulator
+#: beside it").
+DEFAULT_LONGITUDINAL_R = 0.1
 
 
 @dataclass(frozen=True)
@@ -126,6 +131,12 @@ class ControllerConfig:
     whose dove spirals without it, off otherwise (docs/flight.md)."""
     lateral_r: float = DEFAULT_LATERAL_R
     """The lateral regulator's input cost, > 0 (smaller: stronger; docs/flight.md)."""
+    longitudinal: str = "off"
+    """The once-a-beat longitudinal regulator beside it (an LQR on the longitudinal wingbeat
+    map, flapsim.bird.control.longitudinal: pitch, forward and normal velocity, pitch rate):
+    "on", "off" (the paper's) or "auto", as lateral (docs/flight.md)."""
+    longitudinal_r: float = DEFAULT_LONGITUDINAL_R
+    """The longitudinal regulator's input cost, > 0 (smaller: stronger)."""
 
     def __post_init__(self) -> None:
         c = self.carry
@@ -164,6 +175,13 @@ class ControllerConfig:
         if isinstance(lr, bool) or not (math.isfinite(lr) and lr > 0.0):
             raise InputError(f"controller lateral_r must be an input cost > 0 (lateral = \"off\" "
                              f"turns the regulator off), got {lr!r}")
+        if self.longitudinal not in LONGITUDINAL_MODES:
+            raise InputError(f"controller longitudinal must be one of "
+                             f"{', '.join(LONGITUDINAL_MODES)}, got {self.longitudinal!r}")
+        gr = self.longitudinal_r
+        if isinstance(gr, bool) or not (math.isfinite(gr) and gr > 0.0):
+            raise InputError(f"controller longitudinal_r must be an input cost > 0 (longitudinal = "
+                             f"\"off\" turns the regulator off), got {gr!r}")
 
     @classmethod
     def for_dove(cls, feathers: str = "rigid", predict: str = "simulate") -> ControllerConfig:

@@ -23,6 +23,7 @@ import numpy as np
 from tqdm import tqdm
 
 from flapsim.bird.body.model import Dove
+from flapsim.bird.control import longitudinal as longi
 from flapsim.bird.control.config import LOOKAHEAD_MODES, MAX_REFINE, REFINE_GOALS, ControllerConfig
 from flapsim.bird.control.database import load_database, read_header
 from flapsim.bird.control.lateral import N_STATE, TRUNK, LateralRegulator, build_regulator, lateral_state
@@ -160,8 +161,14 @@ class WingbeatController:
     :class:`~flapsim.bird.control.lateral.LateralRegulator`: its once-a-beat change for the
     lateral state at the wingbeat's start, against the last wingbeat's target, is added to the
     reference before S0 is simulated, and the regression's answer is added to that."""
+    longitudinal: longi.LongitudinalRegulator | None = None
+    """None (default, the paper's), or a
+    :class:`~flapsim.bird.control.longitudinal.LongitudinalRegulator` whose change is added to
+    the reference as the lateral regulator's is."""
     _lateral_dP: np.ndarray | None = field(default=None, repr=False)
     _lateral_target: np.ndarray | None = field(default=None, repr=False)
+    _long_dP: np.ndarray | None = field(default=None, repr=False)
+    _long_target: np.ndarray | None = field(default=None, repr=False)
     _last: np.ndarray | None = field(default=None, repr=False)
     _predict: str = field(default="simulate", repr=False)
 
@@ -185,11 +192,15 @@ class WingbeatController:
         if self.lateral is not None and self.lookahead is not None:
             raise InputError("the lateral regulator needs each wingbeat's start state: fly it "
                              "without the look-ahead (lookahead = \"off\")")
+        if self.longitudinal is not None and self.lookahead is not None:
+            raise InputError("the longitudinal regulator needs each wingbeat's start state: fly "
+                             "it without the look-ahead (lookahead = \"off\")")
 
     def reset(self) -> None:
         """Forget the last wingbeat (a new flight)."""
         self._last = None
         self._lateral_dP = self._lateral_target = None
+        self._long_dP = self._long_target = None
         if self.predictor is not None:
             self.predictor.reset()
         if self.lookahead is not None:
@@ -206,6 +217,8 @@ class WingbeatController:
             base = self.P0 + self.carry * (last - self.P0)
         if self._lateral_dP is not None:
             base = base + self._lateral_dP
+        if self._long_dP is not None:
+            base = base + self._long_dP
         return base
 
     @property
@@ -229,6 +242,11 @@ class WingbeatController:
             xt = self._lateral_target
             self._lateral_dP = self.lateral.offset(lateral_state(fl),
                                                    np.zeros(N_STATE) if xt is None else xt)
+        if self.longitudinal is not None:
+            if snap is not None:
+                cycle.restore(fl, snap)
+            self._long_dP = self.longitudinal.offset(longi.longitudinal_state(fl),
+                                                     self.longitudinal.target(self._long_target))
         snap = snap or cycle.snapshot(fl)
         base = self.reference_params()
         if self.predictor is None:
@@ -258,6 +276,10 @@ class WingbeatController:
         # what the next wingbeat carries is the controller's choice, not the regulator's
         # change, which it makes afresh from the next start state
         self._last = Pp if self._lateral_dP is None else Pp - self._lateral_dP
+        if self._long_dP is not None:
+            self._last = self._last - self._long_dP
+        if self.longitudinal is not None:
+            self._long_target = S_t[list(longi.TRUNK)].copy()
         if self.lateral is not None:
             # the next wingbeat regulates toward this one's target (its bank, sideslip and
             # rates); its own target needs S0, which needs the regulated reference
@@ -642,7 +664,14 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
         cfg = FlightConfig(table=flight.table, speed=database_speed(path, flight.dove.feathers),
                            pitch_deg=database_pitch(path, flight.dove.feathers))
         ctl.lateral = build_regulator(flight, P0, cfg, float(config.lateral_r))
-    else:
+    if longitudinal_on(config, db.header):
+        if config.lookahead == "on":
+            raise InputError("the longitudinal regulator needs each wingbeat's start state: set "
+                             "lookahead = \"off\" or \"auto\", or longitudinal = \"off\"")
+        cfg = FlightConfig(table=flight.table, speed=database_speed(path, flight.dove.feathers),
+                           pitch_deg=database_pitch(path, flight.dove.feathers))
+        ctl.longitudinal = longi.build_regulator(flight, P0, cfg, float(config.longitudinal_r))
+    if ctl.lateral is None and ctl.longitudinal is None:
         ctl.lookahead = make_lookahead(flight, config.lookahead, config.refine,
                                        "coarse" if rate else predict)
     if predict == "regression":
@@ -650,6 +679,15 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     elif rate:
         ctl.predictor = CoarsePredictor(rate)
     return ctl
+
+
+def longitudinal_on(config: ControllerConfig, header: dict) -> bool:
+    """Whether a controller under ``config`` for the database with ``header`` flies the
+    longitudinal regulator: ``longitudinal`` "on", or "auto" and the database sampled around
+    the cruise capture."""
+    if config.longitudinal != "auto":
+        return config.longitudinal == "on"
+    return (header.get("config") or {}).get("capture_preset") == "cruise"
 
 
 def lateral_on(config: ControllerConfig, header: dict) -> bool:

@@ -723,3 +723,19 @@ def test_a_start_speed_change_changes_the_starts_speed_and_nothing_else(monkeypa
     for bad in (float("nan"), 1.5, "0.1", True):
         with pytest.raises(InputError, match="start's speed change"):
             tasks.Task(path, start_speed_change=bad)
+
+
+def test_a_point_past_the_paths_end_is_off_it_by_its_distance_from_the_ends_line():
+    # a straight level line along +x ending at x = 60: a bird 1.3 m past the end, 0.3 m to the
+    # side and 0.4 m below is 0.5 m off the line (3-4-5), not sqrt(1.3^2 + 0.5^2) = 1.39 m from
+    # the end point; before the end the plain distance holds; a point behind the start is
+    # measured to the start point (the extension is the end's only)
+    from flapsim.bird.tasks.path_shapes import START_HEIGHT, straight
+
+    path = straight(60.0)
+    z = START_HEIGHT
+    assert path.off_path(np.array([61.3, 0.3, z - 0.4])) == pytest.approx(0.5, abs=1e-6)
+    assert path.distance(np.array([61.3, 0.3, z - 0.4])) == pytest.approx(np.hypot(1.3, 0.5), abs=5e-3)
+    # along the path the distance is to its samples (spaced well under 0.1 m): 5 mm
+    assert path.off_path(np.array([30.0, 0.3, z - 0.4])) == pytest.approx(0.5, abs=5e-3)
+    assert path.off_path(np.array([-1.0, 0.0, z])) == pytest.approx(1.0, abs=5e-3)
