@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-import scipy.linalg
 
 from flapsim.bird.body.params import DOF_NAMES
+from flapsim.bird.control import wingbeat_map
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
 from flapsim.core.errors import InputError, SimulationError
@@ -111,34 +111,14 @@ def perturb(fl: DoveFlight, j: int, eps: float) -> None:
 def linearise(fl: DoveFlight, P: np.ndarray, start: cycle.Snapshot) -> tuple[np.ndarray, np.ndarray]:
     """(A (N_STATE, N_STATE), B (N_STATE, 12)) of the lateral map flying ``P`` from ``start``
     (by central differences: 2 wingbeats per state and per input)."""
-    _, E = input_directions(len(P))
-
-    def end(p: np.ndarray, j: int | None = None, eps: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        cycle.restore(fl, start)
-        if j is not None:
-            perturb(fl, j, eps)
-        x0 = lateral_state(fl)
-        cycle.fly_cycle(fl, None, p, fl.ref)
-        return x0, lateral_state(fl)
-
-    dX, dY = [], []
-    for j, eps in enumerate(STATE_STEP):
-        (xp, yp), (xm, ym) = end(P, j, eps), end(P, j, -eps)
-        dX.append(xp - xm)
-        dY.append(yp - ym)
-    A = np.array(dY).T @ np.linalg.inv(np.array(dX).T)
-    B = np.column_stack([(end(P + e)[1] - end(P - e)[1]) / 2.0 for e in E])
-    return A, B
+    return wingbeat_map.linearise(fl, P, start, lateral_state, perturb, STATE_STEP,
+                                  input_directions(len(P))[1])
 
 
 def lqr(A: np.ndarray, B: np.ndarray, r: float) -> np.ndarray:
     """K (12, N_STATE) of the discrete LQR, u = -K x, with the trunk's states costing
     1 / :data:`STATE_SCALE`^2 and each input step ``r``."""
-    Q = np.zeros((len(A), len(A)))
-    Q[:len(STATE_SCALE), :len(STATE_SCALE)] = np.diag(1.0 / STATE_SCALE ** 2)
-    R = r * np.eye(B.shape[1])
-    X = scipy.linalg.solve_discrete_are(A, B, Q, R)
-    return np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
+    return wingbeat_map.lqr(A, B, r, STATE_SCALE)
 
 
 @dataclass(frozen=True)
