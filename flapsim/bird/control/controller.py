@@ -657,21 +657,20 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     ctl = WingbeatController(flight, reg, P0, carry=float(config.carry), refine=config.refine,
                              refine_goal=refine_goal, refine_stop=float(config.refine_stop),
                              config=config, _predict=predict)
-    if lateral_on(config, db.header):
+    on = [name for name, wanted in (("lateral", lateral_on(config, db.header)),
+                                    ("longitudinal", longitudinal_on(config, db.header))) if wanted]
+    if on:
         if config.lookahead == "on":
-            raise InputError("the lateral regulator needs each wingbeat's start state: set "
-                             "lookahead = \"off\" or \"auto\", or lateral = \"off\"")
+            raise InputError(f"the {on[0]} regulator needs each wingbeat's start state: set "
+                             f"lookahead = \"off\" or \"auto\", or {on[0]} = \"off\"")
+        # both maps are measured from the start the database's samples were drawn around
         cfg = FlightConfig(table=flight.table, speed=database_speed(path, flight.dove.feathers),
                            pitch_deg=database_pitch(path, flight.dove.feathers))
-        ctl.lateral = build_regulator(flight, P0, cfg, float(config.lateral_r))
-    if longitudinal_on(config, db.header):
-        if config.lookahead == "on":
-            raise InputError("the longitudinal regulator needs each wingbeat's start state: set "
-                             "lookahead = \"off\" or \"auto\", or longitudinal = \"off\"")
-        cfg = FlightConfig(table=flight.table, speed=database_speed(path, flight.dove.feathers),
-                           pitch_deg=database_pitch(path, flight.dove.feathers))
-        ctl.longitudinal = longi.build_regulator(flight, P0, cfg, float(config.longitudinal_r))
-    if ctl.lateral is None and ctl.longitudinal is None:
+        if "lateral" in on:
+            ctl.lateral = build_regulator(flight, P0, cfg, float(config.lateral_r))
+        if "longitudinal" in on:
+            ctl.longitudinal = longi.build_regulator(flight, P0, cfg, float(config.longitudinal_r))
+    else:
         ctl.lookahead = make_lookahead(flight, config.lookahead, config.refine,
                                        "coarse" if rate else predict)
     if predict == "regression":
@@ -681,13 +680,17 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
     return ctl
 
 
+def _cruise_database(header: dict) -> bool:
+    return (header.get("config") or {}).get("capture_preset") == "cruise"
+
+
 def longitudinal_on(config: ControllerConfig, header: dict) -> bool:
     """Whether a controller under ``config`` for the database with ``header`` flies the
     longitudinal regulator: ``longitudinal`` "on", or "auto" and the database sampled around
     the cruise capture."""
     if config.longitudinal != "auto":
         return config.longitudinal == "on"
-    return (header.get("config") or {}).get("capture_preset") == "cruise"
+    return _cruise_database(header)
 
 
 def lateral_on(config: ControllerConfig, header: dict) -> bool:
@@ -697,7 +700,7 @@ def lateral_on(config: ControllerConfig, header: dict) -> bool:
     the paper's and the robofly dove's fly as the paper's, without one)."""
     if config.lateral != "auto":
         return config.lateral == "on"
-    return (header.get("config") or {}).get("capture_preset") == "cruise"
+    return _cruise_database(header)
 
 
 def reference_rate(flight: DoveFlight, predict: str, config: ControllerConfig) -> float:

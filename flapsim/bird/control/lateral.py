@@ -20,8 +20,6 @@ it", gives the numbers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import mujoco
 import numpy as np
 
@@ -29,7 +27,6 @@ from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.control import wingbeat_map
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
-from flapsim.core.errors import InputError, SimulationError
 
 #: The trunk's lateral components in the reduced state: roll, v_y, omega_x, omega_z.
 TRUNK = (1, 3, 5, 7)
@@ -49,7 +46,7 @@ STATE_STEP = np.concatenate([[np.radians(1.0), 0.05, 0.1, 0.1],
 #: rate cost as much as one input step times ``r`` (the DOF pairs' differences cost nothing).
 STATE_SCALE = np.array([np.radians(10.0), 0.5, 1.0, 1.0])
 #: The largest input, in steps (10 deg of twist between the wings, 20 % of a stroke).
-U_MAX = 10.0
+U_MAX = wingbeat_map.U_MAX
 #: Wingbeats flown from the cruise start before the map is measured.
 SETTLE = 4
 
@@ -121,44 +118,15 @@ def lqr(A: np.ndarray, B: np.ndarray, r: float) -> np.ndarray:
     return wingbeat_map.lqr(A, B, r, STATE_SCALE)
 
 
-@dataclass(frozen=True)
-class LateralRegulator:
-    """The once-a-beat regulator: dP = directions^T clip(-K (x - x_target), +-U_MAX)."""
-
-    K: np.ndarray
-    directions: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-
-    @property
-    def open_loop_radius(self) -> float:
-        """The largest |eigenvalue| of A: > 1, a lateral disturbance grows every wingbeat."""
-        return float(np.abs(np.linalg.eigvals(self.A)).max())
-
-    @property
-    def closed_loop_radius(self) -> float:
-        return float(np.abs(np.linalg.eigvals(self.A - self.B @ self.K)).max())
-
-    def offset(self, x: np.ndarray, x_target: np.ndarray) -> np.ndarray:
-        """The wingbeat-parameter change (n_params,) for state ``x`` against ``x_target``."""
-        u = np.clip(-self.K @ (x - x_target), -U_MAX, U_MAX)
-        return u @ self.directions
+class LateralRegulator(wingbeat_map.MapRegulator):
+    """The once-a-beat lateral regulator (:class:`~flapsim.bird.control.wingbeat_map.MapRegulator`)."""
 
 
 def build_regulator(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r: float) -> LateralRegulator:
     """Measure the map on a twin of ``fl`` (its own state untouched) flying ``P0`` from
     ``cfg``'s start after :data:`SETTLE` wingbeats, and design the regulator with input cost
     ``r`` (> 0)."""
-    if not (np.isfinite(r) and r > 0):
-        raise InputError(f"the lateral regulator's input cost must be > 0, got {r!r}")
-    tw = fl.twin(None)
-    tw.reset(cfg, P0)
-    for _ in range(SETTLE):
-        cycle.fly_cycle(tw, None, P0, tw.ref)
+    tw = wingbeat_map.settled_twin(fl, P0, cfg, SETTLE, "lateral", r)
     A, B = linearise(tw, P0, cycle.snapshot(tw))
-    try:
-        K = lqr(A, B, r)
-    except (np.linalg.LinAlgError, ValueError) as e:
-        raise SimulationError(f"no lateral regulator for this dove's map ({e}): fly it with "
-                              "lateral = \"off\"") from None
+    K = wingbeat_map.gain(A, B, r, STATE_SCALE, "lateral")
     return LateralRegulator(K, input_directions(len(P0))[1], A, B)

@@ -30,7 +30,6 @@ from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.control import wingbeat_map
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
-from flapsim.core.errors import InputError, SimulationError
 
 #: The trunk's longitudinal components in the reduced state: pitch, v_x, v_z, omega_y.
 TRUNK = (0, 2, 4, 6)
@@ -55,7 +54,7 @@ STATE_STEP = np.concatenate([[np.radians(1.0), 0.05, 0.05, 0.1],
 STATE_SCALE = np.array([np.radians(10.0), 0.5, 0.5, 1.0])
 #: The largest input, in steps (10 deg of twist on both wings, 20 % of a stroke, 10 % of the
 #: period).
-U_MAX = 10.0
+U_MAX = wingbeat_map.U_MAX
 #: Wingbeats flown from the cruise start before the map is measured.
 SETTLE = 4
 
@@ -137,25 +136,13 @@ def lqr(A: np.ndarray, B: np.ndarray, r: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class LongitudinalRegulator:
-    """The once-a-beat regulator: dP = directions^T clip(-K (x - x_target), +-U_MAX), the
-    DOFs' part of ``x_target`` the settled cruise's (:attr:`trim`)."""
+class LongitudinalRegulator(wingbeat_map.MapRegulator):
+    """The once-a-beat longitudinal regulator
+    (:class:`~flapsim.bird.control.wingbeat_map.MapRegulator`), the DOFs' part of its target the
+    settled cruise's (:attr:`trim`)."""
 
-    K: np.ndarray
-    directions: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
     trim: np.ndarray
     """x* (:data:`N_STATE`,): the settled cruise's state at a wingbeat's start."""
-
-    @property
-    def open_loop_radius(self) -> float:
-        """The largest |eigenvalue| of A: > 1, a longitudinal disturbance grows every wingbeat."""
-        return float(np.abs(np.linalg.eigvals(self.A)).max())
-
-    @property
-    def closed_loop_radius(self) -> float:
-        return float(np.abs(np.linalg.eigvals(self.A - self.B @ self.K)).max())
 
     def target(self, trunk: np.ndarray | None) -> np.ndarray:
         """The state regulated toward: the trunk's ``trunk`` (pitch, v_x, v_z, omega_y; None:
@@ -165,22 +152,12 @@ class LongitudinalRegulator:
             xt[:len(TRUNK)] = trunk
         return xt
 
-    def offset(self, x: np.ndarray, x_target: np.ndarray) -> np.ndarray:
-        """The wingbeat-parameter change (n_params,) for state ``x`` against ``x_target``."""
-        u = np.clip(-self.K @ (x - x_target), -U_MAX, U_MAX)
-        return u @ self.directions
-
 
 def build_regulator(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r: float) -> LongitudinalRegulator:
     """Measure the map on a twin of ``fl`` (its own state untouched) flying ``P0`` from
     ``cfg``'s start after :data:`SETTLE` wingbeats, and design the regulator with input cost
     ``r`` (> 0)."""
-    if not (np.isfinite(r) and r > 0):
-        raise InputError(f"the longitudinal regulator's input cost must be > 0, got {r!r}")
-    tw = fl.twin(None)
-    tw.reset(cfg, P0)
-    for _ in range(SETTLE):
-        cycle.fly_cycle(tw, None, P0, tw.ref)
+    tw = wingbeat_map.settled_twin(fl, P0, cfg, SETTLE, "longitudinal", r)
     start = cycle.snapshot(tw)
     A, B = linearise(tw, P0, start)
     # the map's fixed point from one more wingbeat: its slowest mode (a phugoid of ~40
@@ -190,9 +167,5 @@ def build_regulator(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r: float)
     cycle.fly_cycle(tw, None, P0, tw.ref)
     x1 = longitudinal_state(tw)
     trim = x0 - np.linalg.solve(A - np.eye(len(A)), x1 - x0)
-    try:
-        K = lqr(A, B, r)
-    except (np.linalg.LinAlgError, ValueError) as e:
-        raise SimulationError(f"no longitudinal regulator for this dove's map ({e}): fly it with "
-                              "longitudinal = \"off\"") from None
+    K = wingbeat_map.gain(A, B, r, STATE_SCALE, "longitudinal")
     return LongitudinalRegulator(K, input_directions(len(P0))[1], A, B, trim)

@@ -5,12 +5,14 @@ share (each names its own state, its perturbations and its inputs)."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 
 from flapsim.bird.flight import cycle
-from flapsim.bird.flight.dove_flight import DoveFlight
+from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.core.errors import InputError, SimulationError
 
 
 def linearise(fl: DoveFlight, P: np.ndarray, start: cycle.Snapshot,
@@ -46,3 +48,54 @@ def lqr(A: np.ndarray, B: np.ndarray, r: float, state_scale: np.ndarray) -> np.n
     R = r * np.eye(B.shape[1])
     X = scipy.linalg.solve_discrete_are(A, B, Q, R)
     return np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
+
+
+#: The largest input either regulator asks, in steps (10 deg of twist, 20 % of a stroke).
+U_MAX = 10.0
+
+
+@dataclass(frozen=True)
+class MapRegulator:
+    """A once-a-beat regulator on a measured map: dP = directions^T clip(-K (x - x_target),
+    +-:data:`U_MAX`)."""
+
+    K: np.ndarray
+    directions: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+
+    @property
+    def open_loop_radius(self) -> float:
+        """The largest |eigenvalue| of A: > 1, a disturbance grows every wingbeat."""
+        return float(np.abs(np.linalg.eigvals(self.A)).max())
+
+    @property
+    def closed_loop_radius(self) -> float:
+        return float(np.abs(np.linalg.eigvals(self.A - self.B @ self.K)).max())
+
+    def offset(self, x: np.ndarray, x_target: np.ndarray) -> np.ndarray:
+        """The wingbeat-parameter change (n_params,) for state ``x`` against ``x_target``."""
+        u = np.clip(-self.K @ (x - x_target), -U_MAX, U_MAX)
+        return u @ self.directions
+
+
+def settled_twin(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, wingbeats: int,
+                 name: str, r: float) -> DoveFlight:
+    """A twin of ``fl`` (its own state untouched) flown ``wingbeats`` of ``P0`` from ``cfg``'s
+    start, where the ``name`` regulator's map is measured; ``r`` (its input cost) checked > 0."""
+    if not (np.isfinite(r) and r > 0):
+        raise InputError(f"the {name} regulator's input cost must be > 0, got {r!r}")
+    tw = fl.twin(None)
+    tw.reset(cfg, P0)
+    for _ in range(wingbeats):
+        cycle.fly_cycle(tw, None, P0, tw.ref)
+    return tw
+
+
+def gain(A: np.ndarray, B: np.ndarray, r: float, state_scale: np.ndarray, name: str) -> np.ndarray:
+    """:func:`lqr`, its failure a one-line error naming the ``name`` regulator."""
+    try:
+        return lqr(A, B, r, state_scale)
+    except (np.linalg.LinAlgError, ValueError) as e:
+        raise SimulationError(f"no {name} regulator for this dove's map ({e}): fly it with "
+                              f"{name} = \"off\"") from None
