@@ -52,6 +52,10 @@ class PathControlConfig:
     """Speed first: the climb asked drops this much per m/s of airspeed below the speed asked,
     0..1 rad s/m (0: independent speed and height loops, the paper's; docs/design/flight.md, "Speed
     first: off")."""
+    max_climb_deg: float = float(PathTarget.max_climb_deg)
+    """The steepest climb or descent the path target asks, 5..60 deg. The default, 15, is below
+    the 30 and 45 deg climbing circles' own climbs: on them it leaves even a bird that flies
+    every climb asked 1.2 and 2.5 m below the path by the climb's top (docs/flight.md)."""
     turn_load_factor: float = float(PathTarget.turn_load_factor)
     """Slow down ahead of turns that would need more than this load factor at the speed asked,
     to the speed where they need it, 0 or above 1 and at most 5 g (0: never, the paper's;
@@ -72,6 +76,8 @@ class PathControlConfig:
         check(f(self.aoa_per_g_deg) and 0.0 <= self.aoa_per_g_deg <= 90.0, "aoa_per_g_deg", "0..90 deg")
         check(f(self.climb_per_speed_deficit) and 0.0 <= self.climb_per_speed_deficit <= 1.0,
               "climb_per_speed_deficit", "0..1 rad per m/s")
+        check(f(self.max_climb_deg) and 5.0 <= self.max_climb_deg <= 60.0, "max_climb_deg",
+              "5..60 deg")
         n = self.turn_load_factor
         check(f(n) and (n == 0.0 or 1.0 < n <= 5.0), "turn_load_factor",
               "0 (no slowing) or above 1 and at most 5 g")

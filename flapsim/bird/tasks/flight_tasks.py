@@ -207,6 +207,8 @@ class Task:
     """The climb asked drops this much per m/s of airspeed below the speed asked, rad s/m
     (None: the dove's default, :data:`DEFAULT_CLIMB_PER_SPEED_DEFICIT`; 0: independent speed
     and height loops, the paper's)."""
+    max_climb_deg: float | None = None
+    """The steepest climb or descent the path target asks, deg (None: the path target's, 15)."""
     turn_load_factor: float = 0.0
     """The speed asked drops ahead of turns that would need more than this load factor at
     ``speed`` (0: no slowing, the paper's;
@@ -342,6 +344,8 @@ def fly_task(task: Task, db=None, method: str = "lwlr", k: int | None = None,
             task.feathers, task.climb_per_speed_deficit)
         lead["turn_load_factor"] = float(task.turn_load_factor)
         lead["max_bank_deg"] = default_max_bank(task.feathers, task.max_bank_deg)
+        if task.max_climb_deg is not None:
+            lead["max_climb_deg"] = float(task.max_climb_deg)
         lead["turn_speed_floor"] = float(min(task.speed, PathTarget.turn_speed_floor)
                                          if task.turn_speed_floor is None else task.turn_speed_floor)
         target = PathTarget(trim, task.path, speed=task.speed, **lead)

@@ -396,6 +396,8 @@ class PathTarget:
         if not (np.isfinite(self.bank_lead_s) and 0.0 <= self.bank_lead_s <= self.lookahead_s):
             raise InputError(f"the bank lead must be 0..{self.lookahead_s:g} s (the look-ahead), "
                              f"got {self.bank_lead_s}")
+        if not (np.isfinite(self.max_climb_deg) and 5.0 <= self.max_climb_deg <= 60.0):
+            raise InputError(f"the steepest climb asked must be 5..60 deg, got {self.max_climb_deg}")
         if not (np.isfinite(self.max_bank_deg) and 10.0 <= self.max_bank_deg <= 80.0):
             raise InputError(f"the largest bank asked must be 10..80 deg, got {self.max_bank_deg}")
         if not (np.isfinite(self.aoa_per_g_deg) and 0.0 <= self.aoa_per_g_deg <= 90.0):

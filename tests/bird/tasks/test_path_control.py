@@ -423,6 +423,33 @@ def test_the_bank_asked_stops_at_the_largest_bank(cap, capsys, tmp_path):
     assert "max_bank_deg must be 10..80 deg" in err and "\n" not in err
 
 
+@pytest.mark.parametrize("cap", [15.0, 25.0, 35.0])
+def test_the_climb_asked_stops_at_the_steepest_climb(cap, capsys, tmp_path):
+    # the bird on a straight path climbing 30 deg, flying along it at 7 m/s: the recovery
+    # curve runs along the path, so the climb asked is the path's 30 deg, cut at the cap
+    # (tolerance: the Hermite curve of a bird on its line is the line, to rounding)
+    from flapsim.bird.control.targets import Trim
+    from flapsim.bird.flight.cycle import CycleEnd
+    from flapsim.bird.tasks.path_control import PathTarget
+
+    g = np.radians(30.0)
+    u = np.array([np.cos(g), 0.0, np.sin(g)])
+    path = FlightPath(np.array([[0, 0, 10.0], [0, 0, 10.0] + 200.0 * u]))
+    tgt = PathTarget(Trim(np.array([0.05, 0, 7.0, 0, -0.35, 0, 0, 0])), path, speed=7.0,
+                     ki_speed=0.0, ki_altitude=0.0, bank_lead_s=0.0, max_climb_deg=cap)
+    p, v, dt = np.array([0, 0, 10.0]) + 20.0 * u, 7.0 * u, 0.1
+    tgt.begin(p, v)
+    tgt(CycleEnd(None, np.zeros(8), p + v * dt, np.array([1.0, 0, 0, 0]), v, dt, 0.0))
+    assert np.degrees(tgt.asked[-1][2]) == pytest.approx(min(30.0, cap), abs=1e-6)
+    for bad in (2.0, 70.0, float("nan")):
+        with pytest.raises(InputError, match="steepest climb"):
+            PathTarget(Trim(np.zeros(8)), path, max_climb_deg=bad)
+    assert main(["eval", "--scenario", "climb-turn-30", "--config",
+                 _config(tmp_path, "[path]\nmax_climb_deg = 75")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "max_climb_deg must be 5..60 deg" in err and "\n" not in err
+
+
 def _config(tmp_path, text: str) -> str:
     """A control configuration file holding ``text``."""
     f = tmp_path / "control.toml"

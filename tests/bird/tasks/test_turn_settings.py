@@ -145,19 +145,22 @@ def test_the_default_bank_steers_the_sharp_sinusoid_about_as_far_as_the_capture_
 
 def test_a_result_records_the_path_targets_settings_as_flown():
     """Every flown task (and so every eval run's JSON, under ``path_target``) says what the
-    target asked under, with the dove's defaults resolved: None in a Task means 60 deg, 0.2 s
-    and 40 deg per g for the rigid dove (the tables above); a given value is recorded as given."""
+    target asked under, with the dove's defaults resolved: None in a Task means 60 deg, 0.2 s,
+    40 deg per g and a 15 deg climb for the rigid dove (the tables above); a given value is
+    recorded as given."""
     from flapsim.scenarios.flight import _summary
 
     fl, ctl = build_flight(Task(s_curve()))
     try:
         default = fly_task(Task(s_curve(), max_wingbeats=1), controller=ctl)
-        given = fly_task(Task(s_curve(), max_wingbeats=1, max_bank_deg=50.0, bank_lead_s=0.1),
-                         controller=ctl)
+        given = fly_task(Task(s_curve(), max_wingbeats=1, max_bank_deg=50.0, bank_lead_s=0.1,
+                              max_climb_deg=35.0), controller=ctl)
     finally:
         fl.close()
     assert len(default.quats) == 1
     t = default.path_target
     assert (t["max_bank_deg"], t["bank_lead_s"], t["aoa_per_g_deg"], t["speed"]) == (60.0, 0.2, 40.0, 7.0)
-    assert (given.path_target["max_bank_deg"], given.path_target["bank_lead_s"]) == (50.0, 0.1)
+    assert t["max_climb_deg"] == 15.0
+    g = given.path_target
+    assert (g["max_bank_deg"], g["bank_lead_s"], g["max_climb_deg"]) == (50.0, 0.1, 35.0)
     assert _summary(given)["path_target"] == given.path_target
