@@ -38,11 +38,13 @@ def group_of(segment: str) -> str:
 
 
 def water_work_rates(sw: Swimmer, d: mujoco.MjData | None = None,
-                     scratch: mujoco.MjData | None = None) -> np.ndarray:
+                     scratch: mujoco.MjData | None = None, per_segment: bool = False
+                     ) -> np.ndarray:
     """(len(GROUPS), 2) the power [W] each group gives the water at this instant: the total
     ``-sum F . v`` over its polygons and its part ``-sum F . V`` against the body's
     centre-of-mass velocity ``V`` (the slip is their difference); both velocities through
-    the water's uniform flow.
+    the water's uniform flow. ``per_segment``: (len(SEGMENTS), 2) per segment instead, left
+    and right apart (:func:`fold_segments` groups them).
 
     The kinematics are computed afresh from ``d``'s positions and velocities in
     ``scratch`` (an ``MjData`` of the same model; a new one if None), so that ``d`` itself,
@@ -70,10 +72,28 @@ def water_work_rates(sw: Swimmer, d: mujoco.MjData | None = None,
     F = rep.force
     total = -np.einsum("ij,ij->i", F, v - u)
     against = -(F @ V)
+    if per_segment:
+        out = np.zeros((len(SEGMENTS), 2))
+        si = np.zeros(m.nbody, dtype=int)
+        for i, name in enumerate(SEGMENTS):
+            si[sw.body[name]] = i
+        np.add.at(out[:, 0], si[pb], total)
+        np.add.at(out[:, 1], si[pb], against)
+        return out
     out = np.zeros((len(GROUPS), 2))
     gi = _group_index(sw)
     np.add.at(out[:, 0], gi[pb], total)
     np.add.at(out[:, 1], gi[pb], against)
+    return out
+
+
+def fold_segments(rates: np.ndarray) -> np.ndarray:
+    """(..., len(GROUPS), 2) from per-segment (..., len(SEGMENTS), 2) rates: left and right
+    added into their group."""
+    r = np.asarray(rates, dtype=float)
+    out = np.zeros(r.shape[:-2] + (len(GROUPS), r.shape[-1]))
+    for i, name in enumerate(SEGMENTS):
+        out[..., GROUPS.index(group_of(name)), :] += r[..., i, :]
     return out
 
 

@@ -1,0 +1,219 @@
+"""Where a stroke's muscle power goes: per joint group, per segment's water work, over the
+stroke's phases, against the towed drag's power.
+
+Swims a stroke from rest (all layers, as ``flapsim swim`` does) with the water budget on
+(:mod:`flapsim.swim.budget`) and every joint dof's power recorded
+(:func:`flapsim.swim.simulate.step_joint_powers`), then prints, over the settled swim:
+
+* per joint group (shoulders, elbows, wrists, trunk and neck, hips, knees, ankles): the
+  muscles' net power, its positive part and the negative work the muscles absorb (a joint
+  braking: energy taken out of the limb's motion or out of the water pushing the limb,
+  then spent again), the share of the net that the PD's velocity term (the joint damping)
+  gives, and the joint limits' work;
+* per segment group: the power given to the water, its thrust power (the work against
+  the body's progress, negated) and the slip; the arms' and legs' Froude efficiency;
+* the energy balance (net muscle power = water + limits + d(kinetic + potential)/dt),
+  the internal kinetic energy (relative to the centre of mass) and its churn (the mean
+  rate at which it rises: the limbs' motion made and unmade each cycle);
+* the left arm's water work and thrust over ten phase bins, with the time its hand is
+  above the water (the recovery in the air), and the legs' cost against their thrust;
+* the towed drag's power at the swum speed (``flapsim.swim.tow``, the streamlined body at
+  the surface): what a perfect propeller would pay.
+
+    python studies/swim_power_budget.py --body rounded --stroke crawl --seconds 30 \\
+        --json budget.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import mujoco
+import numpy as np
+
+from flapsim.swim.budget import ARMS, GROUPS, LEGS, summarize
+from flapsim.swim.model import SEGMENTS, Swimmer, SwimmerParams
+from flapsim.swim.muscles import kind_of
+from flapsim.swim.simulate import swim
+from flapsim.swim.strokes import load_stroke, stroke_for_body
+from flapsim.swim.tow import tow_drag
+
+#: joint groups reported, each the muscles' kinds (flapsim.swim.muscles.kind_of) in it
+JOINT_GROUPS: dict[str, tuple[str, ...]] = {
+    "shoulders": ("shoulder",), "elbows": ("elbow", "pronation"), "wrists": ("wrist",),
+    "trunk_neck": ("lumbar", "thoracic", "neck"), "hips": ("hip",), "knees": ("knee",),
+    "ankles": ("ankle", "inversion"),
+}
+PHASE_BINS = 10
+
+
+def dof_groups(model: mujoco.MjModel) -> np.ndarray:
+    """(nv - 6,) each joint dof's row in :data:`JOINT_GROUPS` (the free root's dofs left
+    out, as the power records do)."""
+    names = list(JOINT_GROUPS)
+    out = np.zeros(model.nv - 6, dtype=int)
+    for k in range(6, model.nv):
+        j = int(model.dof_jntid[k])
+        kind = kind_of(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j))
+        out[k - 6] = next(i for i, g in enumerate(names) if kind in JOINT_GROUPS[g])
+    return out
+
+
+def joint_table(jp: np.ndarray, groups: np.ndarray) -> dict[str, dict[str, float]]:
+    """Per joint group the mean net, positive and negative muscle power, the damping's
+    share of the net and the limits' power [W], from (n, dofs, 4) samples."""
+    mean = jp.mean(axis=0)
+    out = {}
+    for i, g in enumerate(JOINT_GROUPS):
+        r = mean[groups == i].sum(axis=0)
+        out[g] = {"net_w": float(r[0]), "positive_w": float(r[1]),
+                  "negative_w": float(r[1] - r[0]), "damping_w": float(r[2]),
+                  "limits_w": float(r[3])}
+    return out
+
+
+def arm_phases(res, side: str = "l") -> list[dict[str, float]]:
+    """The arm's (upper arm, forearm, hand of ``side``) mean water power and thrust power
+    [W] and the hand's time above the water, over :data:`PHASE_BINS` bins of the stroke
+    phase (settled swim; the left hand enters the water at phase 0)."""
+    sel = res._steady()
+    seg = [SEGMENTS.index(f"{n}_{side}") for n in ("upper_arm", "forearm", "hand")]
+    w = res.water_rates_segments[sel][:, seg]
+    ph = res.phase[sel]
+    hand = res.limbs[sel][:, 0 if side == "l" else 1] - res.water_level
+    b = np.minimum((ph * PHASE_BINS).astype(int), PHASE_BINS - 1)
+    rows = []
+    for k in range(PHASE_BINS):
+        m = b == k
+        if not m.any():
+            rows.append({"phase": k / PHASE_BINS, "water_w": float("nan"),
+                         "thrust_w": float("nan"), "hand_in_air": float("nan")})
+            continue
+        rows.append({"phase": k / PHASE_BINS,
+                     "water_w": float(w[m, :, 0].sum(axis=1).mean()),
+                     "thrust_w": float(-w[m, :, 1].sum(axis=1).mean()),
+                     "hand_in_air": float((hand[m] > 0.0).mean())})
+    return rows
+
+
+def budget(stroke: str, body: str, seconds: float, rate: float | None, layers: str,
+           seed: int = 0) -> dict:
+    """Swim and measure; the JSON of the study (see the module docstring)."""
+    _ = seed  # the swim is deterministic; kept for the CLI convention
+    params = SwimmerParams(body_shape=body)
+    sw = Swimmer(params)
+    # a bundled stroke's own tuning for this body, as flapsim swim takes it
+    st = load_stroke(stroke_for_body(stroke, body))
+    res = swim(st, seconds, swimmer=sw, rate_hz=rate, layers=layers, budget=True)
+    s = res.summary()
+    sel = res._steady()
+    groups = dof_groups(sw.model)
+    joints = joint_table(res.joint_power[sel], groups)
+    water = summarize(res.water_rates[sel])
+    v = s["speed_m_s"]
+    tow = tow_drag([max(v, 0.05)], params)[0]
+    # energy: potential (gravity) from the centre of mass's height; kinetic from the samples
+    t = res.times[sel]
+    ke = res.kinetic[sel]
+    g = float(np.linalg.norm(sw.model.opt.gravity))
+    pe = sw.mass * g * res.com[sel, 2]
+    span = t[-1] - t[0]
+    de_dt = float((ke[-1, 0] + pe[-1] - ke[0, 0] - pe[0]) / span) if span > 0 else 0.0
+    rise = np.diff(ke[:, 1])
+    churn = float(rise[rise > 0].sum() / span) if span > 0 else 0.0
+    net = float(res.joint_power[sel][:, :, 0].sum(axis=1).mean())
+    pos = float(res.joint_power[sel][:, :, 1].sum(axis=1).mean())
+    limits = float(res.joint_power[sel][:, :, 3].sum(axis=1).mean())
+    legs_joint = sum(joints[g_]["net_w"] for g_ in ("hips", "knees", "ankles"))
+    legs_pos = sum(joints[g_]["positive_w"] for g_ in ("hips", "knees", "ankles"))
+    return {
+        "stroke": st.name, "body": body, "seconds": seconds, "layers": layers,
+        "speed_m_s": v, "stroke_rate_hz": s["stroke_rate_hz"],
+        "distance_per_stroke_m": s["distance_per_stroke_m"],
+        "muscle_power_mean_w": s["muscle_power_mean_w"],
+        "muscle_power_positive_mean_w": s["muscle_power_positive_mean_w"],
+        "roll_shoulders_deg": s.get("roll_shoulders_deg"),
+        "roll_hips_deg": s.get("roll_hips_deg"), "trunk_incline_deg": s.get("trunk_incline_deg"),
+        "towed_drag_n": tow, "towed_drag_power_w": tow * v,
+        "towed_share_of_muscle_power": tow * v / s["muscle_power_mean_w"],
+        "joints": joints,
+        "joints_net_w": net, "joints_positive_w": pos, "joints_negative_w": pos - net,
+        "water": water,
+        "energy": {"muscle_net_w": net, "water_w": water["water_w"], "limits_w": limits,
+                   "d_energy_dt_w": de_dt,
+                   "balance_residual_w": net + limits - water["water_w"] - de_dt,
+                   "internal_kinetic_mean_j": float(ke[:, 1].mean()),
+                   "internal_kinetic_churn_w": churn},
+        "legs": {"joint_net_w": legs_joint, "joint_positive_w": legs_pos,
+                 "thrust_w": water["legs_thrust_power_w"], "water_w": water["legs_water_w"],
+                 "thigh_water_w": water["segments"]["thigh"]["water_w"]},
+        "left_arm_phases": arm_phases(res, "l"),
+        "groups": {"arms": list(ARMS), "legs": list(LEGS), "segments": list(GROUPS)},
+    }
+
+
+def print_report(b: dict) -> None:
+    print(f"{b['stroke']} on the {b['body']} body, {b['seconds']:g} s ({b['layers']} layers): "
+          f"{b['speed_m_s']:.3f} m/s at {b['stroke_rate_hz']:.2f} Hz, "
+          f"{b['distance_per_stroke_m']:.2f} m/stroke; muscle power "
+          f"{b['muscle_power_mean_w']:.0f} W net, {b['muscle_power_positive_mean_w']:.0f} W "
+          f"positive; roll {b['roll_shoulders_deg']:.0f}/{b['roll_hips_deg']:.0f} deg, "
+          f"incline {b['trunk_incline_deg']:.0f} deg")
+    print(f"towed drag at this speed {b['towed_drag_n']:.1f} N: {b['towed_drag_power_w']:.1f} W "
+          f"({100 * b['towed_share_of_muscle_power']:.0f} % of the net muscle power)\n")
+    print(f"{'joints':<12}{'net W':>8}{'pos W':>8}{'neg W':>8}{'damp W':>8}{'limit W':>9}")
+    for g, r in b["joints"].items():
+        print(f"{g:<12}{r['net_w']:8.1f}{r['positive_w']:8.1f}{r['negative_w']:8.1f}"
+              f"{r['damping_w']:8.1f}{r['limits_w']:9.2f}")
+    print(f"{'all':<12}{b['joints_net_w']:8.1f}{b['joints_positive_w']:8.1f}"
+          f"{b['joints_negative_w']:8.1f}\n")
+    w = b["water"]
+    print(f"{'water':<12}{'into W':>8}{'thrust W':>10}{'slip W':>8}")
+    for g, r in w["segments"].items():
+        print(f"{g:<12}{r['water_w']:8.1f}{-r['against_progress_w']:10.1f}{r['slip_w']:8.1f}")
+    print(f"{'all':<12}{w['water_w']:8.1f}{'':>10}{w['slip_w']:8.1f}")
+    for n in ("arms", "legs"):
+        eff = w[f"{n}_froude_efficiency"]
+        print(f"{n}: thrust {w[f'{n}_thrust_power_w']:.1f} of {w[f'{n}_water_w']:.1f} W, "
+              f"Froude efficiency {'-' if eff is None else f'{eff:.2f}'}")
+    e = b["energy"]
+    print(f"\nenergy: muscles {e['muscle_net_w']:.1f} W + limits {e['limits_w']:.1f} = water "
+          f"{e['water_w']:.1f} + d(KE+PE)/dt {e['d_energy_dt_w']:.1f} (residual "
+          f"{e['balance_residual_w']:.1f} W); internal KE {e['internal_kinetic_mean_j']:.1f} J "
+          f"mean, churned at {e['internal_kinetic_churn_w']:.1f} W")
+    lg = b["legs"]
+    print(f"legs: joints {lg['joint_net_w']:.1f} W net ({lg['joint_positive_w']:.1f} positive) "
+          f"for {lg['thrust_w']:.1f} W of thrust ({lg['water_w']:.1f} W into the water by "
+          f"shanks and feet, thighs {lg['thigh_water_w']:.1f})\n")
+    print(f"{'left arm':<10}{'water W':>9}{'thrust W':>10}{'hand in air':>13}")
+    for r in b["left_arm_phases"]:
+        print(f"{r['phase']:<10.1f}{r['water_w']:9.1f}{r['thrust_w']:10.1f}"
+              f"{100 * r['hand_in_air']:12.0f}%")
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--stroke", default="crawl", help="a bundled stroke or a stroke file")
+    ap.add_argument("--body", choices=("box", "rounded"), default="rounded")
+    ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--rate", type=float, default=None, help="stroke rate [cycles/s]")
+    ap.add_argument("--layers", choices=("basic", "cycle", "all"), default="all")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", help="write the budget here")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = parser().parse_args(argv)
+    b = budget(a.stroke, a.body, a.seconds, a.rate, a.layers, a.seed)
+    print_report(b)
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(b, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
