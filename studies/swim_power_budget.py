@@ -33,7 +33,7 @@ import sys
 import mujoco
 import numpy as np
 
-from flapsim.swim.budget import ARMS, GROUPS, LEGS, summarize
+from flapsim.swim.budget import ARMS, GROUPS, LEGS, ideal_paddle, summarize
 from flapsim.swim.model import SEGMENTS, Swimmer, SwimmerParams
 from flapsim.swim.muscles import kind_of
 from flapsim.swim.simulate import swim
@@ -47,6 +47,25 @@ JOINT_GROUPS: dict[str, tuple[str, ...]] = {
     "ankles": ("ankle", "inversion"),
 }
 PHASE_BINS = 10
+#: the speed asked of the crawl at a swimmer's effort [m/s] (the bound is also taken there)
+TARGET_SPEED = 1.2
+
+
+def paddle_geometry(model: mujoco.MjModel) -> tuple[float, float]:
+    """(paddle area [m^2], pull path [m]) of a generous ideal arm: the hand's and the
+    forearm's plan areas (their boxes' two larger sides) as if both moved at the hand's
+    speed, and a path of twice the shoulder-to-hand-centre reach (from straight ahead to
+    straight behind the shoulder)."""
+    area = 0.0
+    for name in ("hand_l", "forearm_l"):
+        h = np.sort(model.geom_size[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)])
+        area += 4.0 * h[1] * h[2]
+    body = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n)
+            for n in ("forearm_l", "hand_l")}
+    gh = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "hand_l")
+    reach = (abs(model.body_pos[body["forearm_l"]][2]) + abs(model.body_pos[body["hand_l"]][2])
+             + abs(model.geom_pos[gh][2]))
+    return area, 2.0 * reach
 
 
 def dof_groups(model: mujoco.MjModel) -> np.ndarray:
@@ -126,6 +145,24 @@ def budget(stroke: str, body: str, seconds: float, rate: float | None, layers: s
     net = float(res.joint_power[sel][:, :, 0].sum(axis=1).mean())
     pos = float(res.joint_power[sel][:, :, 1].sum(axis=1).mean())
     limits = float(res.joint_power[sel][:, :, 3].sum(axis=1).mean())
+    # the least any two drag-based paddles of this hand and forearm could pay (flapsim.swim.
+    # budget.ideal_paddle): at the swum speed against the towed drag and against the drag
+    # the arms carried (their thrust power / speed: the towed body's plus what the limbs
+    # and the roll add), and at TARGET_SPEED with both scaled as v^2
+    area, path = paddle_geometry(sw.model)
+    carried = water["arms_thrust_power_w"] / v if v > 0 else float("nan")
+    tow_target = tow_drag([TARGET_SPEED], params)[0]
+    bounds = {}
+    for label, speed, drag in (("swum_towed", v, tow), ("swum_carried", v, carried),
+                               ("target_towed", TARGET_SPEED, tow_target),
+                               ("target_carried", TARGET_SPEED,
+                                carried * (TARGET_SPEED / v) ** 2)):
+        for rate_hz in (s["stroke_rate_hz"], 0.7):
+            if drag > 0:
+                bounds[f"{label}_{rate_hz:.2f}hz"] = {
+                    "speed_m_s": speed, "drag_n": drag, "rate_hz": rate_hz,
+                    **ideal_paddle(speed, drag, rate_hz, area, path,
+                                   cd=params.cd_normal, density=params.water_density)}
     legs_joint = sum(joints[g_]["net_w"] for g_ in ("hips", "knees", "ankles"))
     legs_pos = sum(joints[g_]["positive_w"] for g_ in ("hips", "knees", "ankles"))
     return {
@@ -150,6 +187,8 @@ def budget(stroke: str, body: str, seconds: float, rate: float | None, layers: s
                  "thrust_w": water["legs_thrust_power_w"], "water_w": water["legs_water_w"],
                  "thigh_water_w": water["segments"]["thigh"]["water_w"]},
         "left_arm_phases": arm_phases(res, "l"),
+        "ideal_paddle": {"area_m2": area, "path_m": path, "cd": params.cd_normal,
+                         "drag_carried_by_arms_n": carried, "bounds": bounds},
         "groups": {"arms": list(ARMS), "legs": list(LEGS), "segments": list(GROUPS)},
     }
 
@@ -191,6 +230,14 @@ def print_report(b: dict) -> None:
     for r in b["left_arm_phases"]:
         print(f"{r['phase']:<10.1f}{r['water_w']:9.1f}{r['thrust_w']:10.1f}"
               f"{100 * r['hand_in_air']:12.0f}%")
+    ip = b["ideal_paddle"]
+    print(f"\nideal paddles (hand + forearm {ip['area_m2']:.3f} m^2 at CD {ip['cd']:g}, "
+          f"{ip['path_m']:.2f} m straight back; the arms carried "
+          f"{ip['drag_carried_by_arms_n']:.1f} N):")
+    print(f"{'case':<28}{'v m/s':>7}{'drag N':>8}{'Hz':>6}{'slip':>7}{'eff':>6}{'arms W':>8}")
+    for k, r in ip["bounds"].items():
+        print(f"{k:<28}{r['speed_m_s']:7.2f}{r['drag_n']:8.1f}{r['rate_hz']:6.2f}"
+              f"{r['slip_m_s']:7.2f}{r['froude_efficiency']:6.2f}{r['power_w']:8.0f}")
 
 
 def parser() -> argparse.ArgumentParser:

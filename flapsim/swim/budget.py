@@ -18,6 +18,8 @@ Only the surface engine's drag, lift and friction are counted (the wave-making p
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -129,3 +131,28 @@ def summarize(rates: np.ndarray) -> dict:
         out[f"{name}_froude_efficiency"] = thrust / total if thrust > 0 and total > 0 else None
     out["samples"] = int(len(r))
     return out
+
+
+def ideal_paddle(speed: float, drag: float, rate_hz: float, area: float, path: float,
+                 cd: float = 1.2, density: float = 1025.0) -> dict:
+    """The least power two drag-based paddles need to hold ``drag`` [N] at ``speed`` [m/s]:
+    each arm pulls once a cycle (``rate_hz``), its paddle (``area`` [m^2] at drag
+    coefficient ``cd``) moving straight backwards ``path`` [m] relative to the body at a
+    constant slip ``u`` through the water [m/s], all its force along the swim (no sideways or
+    vertical sweep, no recovery, quasi-steady). Its pull lasts ``path / (speed + u)``; the
+    impulse of the two pulls, ``density cd area u^2 path / (speed + u)``, balances ``drag /
+    rate_hz`` a cycle, which fixes ``u``; the arms then put ``drag (speed + u)`` into the
+    water, a Froude efficiency of ``speed / (speed + u)``.
+
+    Returns ``slip_m_s``, ``power_w``, ``froude_efficiency``, ``pull_s`` (each arm's) and
+    ``pull_fraction`` (of the cycle)."""
+    if not all(x > 0 and math.isfinite(x) for x in (speed, drag, rate_hz, area, path, cd,
+                                                    density)):
+        raise ValueError("ideal_paddle takes positive, finite numbers")
+    k = drag / (rate_hz * density * cd * area * path)
+    # u^2 = k (speed + u): the positive root
+    u = 0.5 * (k + math.sqrt(k * k + 4.0 * k * speed))
+    pull = path / (speed + u)
+    return {"slip_m_s": u, "power_w": drag * (speed + u),
+            "froude_efficiency": speed / (speed + u), "pull_s": pull,
+            "pull_fraction": pull * rate_hz}
