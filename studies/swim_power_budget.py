@@ -33,19 +33,20 @@ import sys
 import mujoco
 import numpy as np
 
-from flapsim.swim.budget import ARMS, GROUPS, LEGS, ideal_paddle, summarize
+from flapsim.swim.budget import (
+    ARMS,
+    GROUPS,
+    LEGS,
+    dof_groups,
+    ideal_paddle,
+    summarize,
+    summarize_joints,
+)
 from flapsim.swim.model import SEGMENTS, Swimmer, SwimmerParams
-from flapsim.swim.muscles import kind_of
 from flapsim.swim.simulate import swim
 from flapsim.swim.strokes import load_stroke, stroke_for_body
 from flapsim.swim.tow import tow_drag
 
-#: joint groups reported, each the muscles' kinds (flapsim.swim.muscles.kind_of) in it
-JOINT_GROUPS: dict[str, tuple[str, ...]] = {
-    "shoulders": ("shoulder",), "elbows": ("elbow", "pronation"), "wrists": ("wrist",),
-    "trunk_neck": ("lumbar", "thoracic", "neck"), "hips": ("hip",), "knees": ("knee",),
-    "ankles": ("ankle", "inversion"),
-}
 PHASE_BINS = 10
 #: the speed asked of the crawl at a swimmer's effort [m/s] (the bound is also taken there)
 TARGET_SPEED = 1.2
@@ -66,31 +67,6 @@ def paddle_geometry(model: mujoco.MjModel) -> tuple[float, float]:
     reach = (abs(model.body_pos[body["forearm_l"]][2]) + abs(model.body_pos[body["hand_l"]][2])
              + abs(model.geom_pos[gh][2]))
     return area, 2.0 * reach
-
-
-def dof_groups(model: mujoco.MjModel) -> np.ndarray:
-    """(nv - 6,) each joint dof's row in :data:`JOINT_GROUPS` (the free root's dofs left
-    out, as the power records do)."""
-    names = list(JOINT_GROUPS)
-    out = np.zeros(model.nv - 6, dtype=int)
-    for k in range(6, model.nv):
-        j = int(model.dof_jntid[k])
-        kind = kind_of(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j))
-        out[k - 6] = next(i for i, g in enumerate(names) if kind in JOINT_GROUPS[g])
-    return out
-
-
-def joint_table(jp: np.ndarray, groups: np.ndarray) -> dict[str, dict[str, float]]:
-    """Per joint group the mean net, positive and negative muscle power, the damping's
-    share of the net and the limits' power [W], from (n, dofs, 4) samples."""
-    mean = jp.mean(axis=0)
-    out = {}
-    for i, g in enumerate(JOINT_GROUPS):
-        r = mean[groups == i].sum(axis=0)
-        out[g] = {"net_w": float(r[0]), "positive_w": float(r[1]),
-                  "negative_w": float(r[1] - r[0]), "damping_w": float(r[2]),
-                  "limits_w": float(r[3])}
-    return out
 
 
 def arm_phases(res, side: str = "l") -> list[dict[str, float]]:
@@ -128,8 +104,7 @@ def budget(stroke: str, body: str, seconds: float, rate: float | None, layers: s
     res = swim(st, seconds, swimmer=sw, rate_hz=rate, layers=layers, budget=True)
     s = res.summary()
     sel = res._steady()
-    groups = dof_groups(sw.model)
-    joints = joint_table(res.joint_power[sel], groups)
+    joints = summarize_joints(res.joint_power[sel], dof_groups(sw.model))["groups"]
     water = summarize(res.water_rates[sel])
     v = s["speed_m_s"]
     tow = tow_drag([max(v, 0.05)], params)[0]

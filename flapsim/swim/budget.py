@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from flapsim.swim.model import SEGMENTS, Swimmer
+from flapsim.swim.muscles import kind_of
 
 #: the segments folded left/right into the groups reported, head to foot
 GROUPS: tuple[str, ...] = ("head", "thorax", "abdomen", "pelvis", "upper_arm", "forearm",
@@ -156,3 +157,43 @@ def ideal_paddle(speed: float, drag: float, rate_hz: float, area: float, path: f
     return {"slip_m_s": u, "power_w": drag * (speed + u),
             "froude_efficiency": speed / (speed + u), "pull_s": pull,
             "pull_fraction": pull * rate_hz}
+
+
+#: joint groups of the muscles' budget, each the muscle kinds
+#: (:func:`flapsim.swim.muscles.kind_of`) in it
+JOINT_GROUPS: dict[str, tuple[str, ...]] = {
+    "shoulders": ("shoulder",), "elbows": ("elbow", "pronation"), "wrists": ("wrist",),
+    "trunk_neck": ("lumbar", "thoracic", "neck"), "hips": ("hip",), "knees": ("knee",),
+    "ankles": ("ankle", "inversion"),
+}
+
+
+def dof_groups(model: mujoco.MjModel) -> np.ndarray:
+    """(nv - 6,) each joint dof's row in :data:`JOINT_GROUPS` (the free root's six dofs left
+    out, as the power records do)."""
+    names = list(JOINT_GROUPS)
+    out = np.zeros(model.nv - 6, dtype=int)
+    for k in range(6, model.nv):
+        kind = kind_of(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT,
+                                         int(model.dof_jntid[k])))
+        out[k - 6] = next(i for i, g in enumerate(names) if kind in JOINT_GROUPS[g])
+    return out
+
+
+def summarize_joints(joint_power: np.ndarray, groups: np.ndarray) -> dict:
+    """Per joint group the mean net, positive and absorbed (negative) muscle power, the
+    joint damping's share of the net and the joint limits' power [W], from (n, dofs, 4)
+    samples (:func:`flapsim.swim.simulate.step_joint_powers`); and the totals."""
+    jp = np.asarray(joint_power, dtype=float)
+    if jp.ndim != 3 or jp.shape[2] != 4 or jp.shape[1] != len(groups) or not len(jp):
+        raise ValueError(f"expected (n, {len(groups)}, 4) joint powers, got {jp.shape}")
+    mean = jp.mean(axis=0)
+    out: dict = {}
+    for i, g in enumerate(JOINT_GROUPS):
+        r = mean[groups == i].sum(axis=0)
+        out[g] = {"net_w": float(r[0]), "positive_w": float(r[1]),
+                  "negative_w": float(r[1] - r[0]), "damping_w": float(r[2]),
+                  "limits_w": float(r[3])}
+    tot = mean.sum(axis=0)
+    return {"groups": out, "net_w": float(tot[0]), "positive_w": float(tot[1]),
+            "negative_w": float(tot[1] - tot[0]), "limits_w": float(tot[3])}

@@ -18,7 +18,7 @@ from flapsim.core.errors import InputError
 from flapsim.fluid.flow import FlowField
 from flapsim.render.scene import Marker, add_items
 from flapsim.render.video import Camera, CameraRig, new_renderer
-from flapsim.swim.budget import fold_segments, water_work_rates
+from flapsim.swim.budget import dof_groups, fold_segments, summarize_joints, water_work_rates
 from flapsim.swim.budget import summarize as summarize_budget
 from flapsim.swim.continuous import RULES, HandRules
 from flapsim.swim.goals import Circle, Heading, Path, Point, Trajectory, Waypoints
@@ -141,6 +141,8 @@ class SwimResult:
     #: gives (<= 0 where it brakes) and the joint limits' (and contacts') constraint force's
     #: (:func:`step_joint_powers`); dofs in ``model.jnt_dofadr`` order from dof 6
     joint_power: np.ndarray | None = field(default=None, repr=False)
+    #: each joint dof's row in :data:`flapsim.swim.budget.JOINT_GROUPS` (with ``joint_power``)
+    joint_groups: np.ndarray | None = field(default=None, repr=False)
     #: at each sample, with ``swim(budget=True)``: the stroke phase (0..1) of the basic layer
     phase: np.ndarray | None = field(default=None, repr=False)
     #: at each sample, with ``swim(budget=True)``: the whole body's kinetic energy [J] and
@@ -335,6 +337,9 @@ class SwimResult:
             **self._limbs_summary(sel),
             **({"water_budget": summarize_budget(self.water_rates[sel])}
                if self.water_rates is not None and sel.any() else {}),
+            **({"joint_budget": summarize_joints(self.joint_power[sel], self.joint_groups)}
+               if self.joint_power is not None and self.joint_groups is not None and sel.any()
+               else {}),
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
             "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
@@ -632,6 +637,7 @@ def swim(
                       water_rates=fold_segments(np.asarray(water)) if budget else None,
                       water_rates_segments=np.asarray(water) if budget else None,
                       joint_power=np.asarray(joints) if budget else None,
+                      joint_groups=dof_groups(m) if budget else None,
                       phase=np.asarray(phases) if budget else None,
                       kinetic=np.asarray(kinetic) if budget else None,
                       approach=approach.summary() if approach is not None else None)

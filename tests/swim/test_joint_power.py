@@ -6,28 +6,16 @@ its anatomy counts them."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import mujoco
 import numpy as np
 import pytest
 
-from flapsim.swim.budget import fold_segments, water_work_rates
+from flapsim.swim.budget import JOINT_GROUPS, dof_groups, fold_segments, water_work_rates
 from flapsim.swim.model import Swimmer, SwimmerParams
 from flapsim.swim.simulate import SAMPLE_HZ, kinetic_energies, swim
 from flapsim.swim.strokes import load_stroke, stroke_for_body
 
 from .test_power import SECONDS, _work_of_everything_else
-
-STUDY = Path(__file__).resolve().parents[2] / "studies" / "swim_power_budget.py"
-
-
-def _study():
-    spec = importlib.util.spec_from_file_location("swim_power_budget", STUDY)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def test_the_joints_work_closes_the_energy_balance_and_records_mujocos_kinetic_energy() -> None:
@@ -56,6 +44,10 @@ def test_the_joints_work_closes_the_energy_balance_and_records_mujocos_kinetic_e
     finally:
         m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     assert ke == pytest.approx(ke_mujoco, rel=1e-9)
+    # the summary's joint budget is the settled swim's, as its muscle power is
+    jb = r.summary()["joint_budget"]
+    assert jb["net_w"] == pytest.approx(r.summary()["muscle_power_mean_w"], rel=1e-9)
+    assert jb["negative_w"] == pytest.approx(jb["positive_w"] - jb["net_w"], rel=1e-12)
     # per-segment water rates fold into the groups the budget reports
     assert np.allclose(fold_segments(r.water_rates_segments), r.water_rates, atol=1e-9)
     s = Swimmer(SwimmerParams(body_shape="rounded"))
@@ -80,11 +72,9 @@ def test_a_rigid_translation_has_no_internal_kinetic_energy() -> None:
 
 
 def test_the_joint_groups_hold_the_swimmers_33_joint_dofs_by_anatomy() -> None:
-    study = _study()
     sw = Swimmer(SwimmerParams())
-    g = study.dof_groups(sw.model)
-    counts = dict(zip(study.JOINT_GROUPS, np.bincount(g, minlength=len(study.JOINT_GROUPS)),
-                      strict=True))
+    g = dof_groups(sw.model)
+    counts = dict(zip(JOINT_GROUPS, np.bincount(g, minlength=len(JOINT_GROUPS)), strict=True))
     # balls 3 dofs, hinges 1 (swimmer.xml): two shoulders; two elbows of flexion and
     # pronation; two wrists; lumbar, thoracic and neck balls; two hips; two knees; two
     # ankles of flexion and inversion
