@@ -58,6 +58,11 @@ _CRAWL = (
        # the arms' share of the cycle under water (entry to exit), +-35 %: swimmers pull
        # for ~60-70 % of the cycle and recover over the water in the rest
        ("warp", "arms", 0, 0.35)]
+    # the recovery: how far the arm swings out and how the elbow folds (a recovery that
+    # drags the upper arm through the water pays for it: studies/swim_power_budget.py)
+    + [("key", "shoulder_l.abd", i, 20.0) for i in range(6, 9)]
+    + [("key", "shoulder_l.rot", 6, 25.0)]
+    + [("key", "elbow_l.flex", i, 25.0) for i in range(6, 8)]
 )
 #: the crawl's arm joints whose keys the "warp" parameter retimes, and the key of the
 #: shoulder's flexion at which the hand leaves the water

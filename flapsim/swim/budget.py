@@ -18,10 +18,13 @@ Only the surface engine's drag, lift and friction are counted (the wave-making p
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
 from flapsim.swim.model import SEGMENTS, Swimmer
+from flapsim.swim.muscles import kind_of
 
 #: the segments folded left/right into the groups reported, head to foot
 GROUPS: tuple[str, ...] = ("head", "thorax", "abdomen", "pelvis", "upper_arm", "forearm",
@@ -38,11 +41,13 @@ def group_of(segment: str) -> str:
 
 
 def water_work_rates(sw: Swimmer, d: mujoco.MjData | None = None,
-                     scratch: mujoco.MjData | None = None) -> np.ndarray:
+                     scratch: mujoco.MjData | None = None, per_segment: bool = False
+                     ) -> np.ndarray:
     """(len(GROUPS), 2) the power [W] each group gives the water at this instant: the total
     ``-sum F . v`` over its polygons and its part ``-sum F . V`` against the body's
     centre-of-mass velocity ``V`` (the slip is their difference); both velocities through
-    the water's uniform flow.
+    the water's uniform flow. ``per_segment``: (len(SEGMENTS), 2) per segment instead, left
+    and right apart (:func:`fold_segments` groups them).
 
     The kinematics are computed afresh from ``d``'s positions and velocities in
     ``scratch`` (an ``MjData`` of the same model; a new one if None), so that ``d`` itself,
@@ -70,10 +75,28 @@ def water_work_rates(sw: Swimmer, d: mujoco.MjData | None = None,
     F = rep.force
     total = -np.einsum("ij,ij->i", F, v - u)
     against = -(F @ V)
+    if per_segment:
+        out = np.zeros((len(SEGMENTS), 2))
+        si = np.zeros(m.nbody, dtype=int)
+        for i, name in enumerate(SEGMENTS):
+            si[sw.body[name]] = i
+        np.add.at(out[:, 0], si[pb], total)
+        np.add.at(out[:, 1], si[pb], against)
+        return out
     out = np.zeros((len(GROUPS), 2))
     gi = _group_index(sw)
     np.add.at(out[:, 0], gi[pb], total)
     np.add.at(out[:, 1], gi[pb], against)
+    return out
+
+
+def fold_segments(rates: np.ndarray) -> np.ndarray:
+    """(..., len(GROUPS), 2) from per-segment (..., len(SEGMENTS), 2) rates: left and right
+    added into their group."""
+    r = np.asarray(rates, dtype=float)
+    out = np.zeros(r.shape[:-2] + (len(GROUPS), r.shape[-1]))
+    for i, name in enumerate(SEGMENTS):
+        out[..., GROUPS.index(group_of(name)), :] += r[..., i, :]
     return out
 
 
@@ -109,3 +132,68 @@ def summarize(rates: np.ndarray) -> dict:
         out[f"{name}_froude_efficiency"] = thrust / total if thrust > 0 and total > 0 else None
     out["samples"] = int(len(r))
     return out
+
+
+def ideal_paddle(speed: float, drag: float, rate_hz: float, area: float, path: float,
+                 cd: float = 1.2, density: float = 1025.0) -> dict:
+    """The least power two drag-based paddles need to hold ``drag`` [N] at ``speed`` [m/s]:
+    each arm pulls once a cycle (``rate_hz``), its paddle (``area`` [m^2] at drag
+    coefficient ``cd``) moving straight backwards ``path`` [m] relative to the body at a
+    constant slip ``u`` through the water [m/s], all its force along the swim (no sideways or
+    vertical sweep, no recovery, quasi-steady). Its pull lasts ``path / (speed + u)``; the
+    impulse of the two pulls, ``density cd area u^2 path / (speed + u)``, balances ``drag /
+    rate_hz`` a cycle, which fixes ``u``; the arms then put ``drag (speed + u)`` into the
+    water, a Froude efficiency of ``speed / (speed + u)``.
+
+    Returns ``slip_m_s``, ``power_w``, ``froude_efficiency``, ``pull_s`` (each arm's) and
+    ``pull_fraction`` (of the cycle)."""
+    if not all(x > 0 and math.isfinite(x) for x in (speed, drag, rate_hz, area, path, cd,
+                                                    density)):
+        raise ValueError("ideal_paddle takes positive, finite numbers")
+    k = drag / (rate_hz * density * cd * area * path)
+    # u^2 = k (speed + u): the positive root
+    u = 0.5 * (k + math.sqrt(k * k + 4.0 * k * speed))
+    pull = path / (speed + u)
+    return {"slip_m_s": u, "power_w": drag * (speed + u),
+            "froude_efficiency": speed / (speed + u), "pull_s": pull,
+            "pull_fraction": pull * rate_hz}
+
+
+#: joint groups of the muscles' budget, each the muscle kinds
+#: (:func:`flapsim.swim.muscles.kind_of`) in it
+JOINT_GROUPS: dict[str, tuple[str, ...]] = {
+    "shoulders": ("shoulder",), "elbows": ("elbow", "pronation"), "wrists": ("wrist",),
+    "trunk_neck": ("lumbar", "thoracic", "neck"), "hips": ("hip",), "knees": ("knee",),
+    "ankles": ("ankle", "inversion"),
+}
+
+
+def dof_groups(model: mujoco.MjModel) -> np.ndarray:
+    """(nv - 6,) each joint dof's row in :data:`JOINT_GROUPS` (the free root's six dofs left
+    out, as the power records do)."""
+    names = list(JOINT_GROUPS)
+    out = np.zeros(model.nv - 6, dtype=int)
+    for k in range(6, model.nv):
+        kind = kind_of(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT,
+                                         int(model.dof_jntid[k])))
+        out[k - 6] = next(i for i, g in enumerate(names) if kind in JOINT_GROUPS[g])
+    return out
+
+
+def summarize_joints(joint_power: np.ndarray, groups: np.ndarray) -> dict:
+    """Per joint group the mean net, positive and absorbed (negative) muscle power, the
+    joint damping's share of the net and the joint limits' power [W], from (n, dofs, 4)
+    samples (:func:`flapsim.swim.simulate.step_joint_powers`); and the totals."""
+    jp = np.asarray(joint_power, dtype=float)
+    if jp.ndim != 3 or jp.shape[2] != 4 or jp.shape[1] != len(groups) or not len(jp):
+        raise ValueError(f"expected (n, {len(groups)}, 4) joint powers, got {jp.shape}")
+    mean = jp.mean(axis=0)
+    out: dict = {}
+    for i, g in enumerate(JOINT_GROUPS):
+        r = mean[groups == i].sum(axis=0)
+        out[g] = {"net_w": float(r[0]), "positive_w": float(r[1]),
+                  "negative_w": float(r[1] - r[0]), "damping_w": float(r[2]),
+                  "limits_w": float(r[3])}
+    tot = mean.sum(axis=0)
+    return {"groups": out, "net_w": float(tot[0]), "positive_w": float(tot[1]),
+            "negative_w": float(tot[1] - tot[0]), "limits_w": float(tot[3])}

@@ -18,8 +18,8 @@ from flapsim.core.errors import InputError
 from flapsim.fluid.flow import FlowField
 from flapsim.render.scene import Marker, add_items
 from flapsim.render.video import Camera, CameraRig, new_renderer
+from flapsim.swim.budget import dof_groups, fold_segments, summarize_joints, water_work_rates
 from flapsim.swim.budget import summarize as summarize_budget
-from flapsim.swim.budget import water_work_rates
 from flapsim.swim.continuous import RULES, HandRules
 from flapsim.swim.goals import Circle, Heading, Path, Point, Trajectory, Waypoints
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
@@ -132,6 +132,22 @@ class SwimResult:
     #: group gives the water and its part against the body's progress [W]
     #: (:func:`flapsim.swim.budget.water_work_rates`)
     water_rates: np.ndarray | None = field(default=None, repr=False)
+    #: at each sample, with ``swim(budget=True)``: (n, segments, 2) the same per segment,
+    #: left and right apart (:data:`flapsim.swim.model.SEGMENTS` order)
+    water_rates_segments: np.ndarray | None = field(default=None, repr=False)
+    #: at each sample, with ``swim(budget=True)``: (n, joint dofs, 4) each joint dof's mean
+    #: power over the steps since the previous sample [W]: the muscle's net (as ``power``),
+    #: its positive part (per step), the part the joint damping (the PD's velocity term)
+    #: gives (<= 0 where it brakes) and the joint limits' (and contacts') constraint force's
+    #: (:func:`step_joint_powers`); dofs in ``model.jnt_dofadr`` order from dof 6
+    joint_power: np.ndarray | None = field(default=None, repr=False)
+    #: each joint dof's row in :data:`flapsim.swim.budget.JOINT_GROUPS` (with ``joint_power``)
+    joint_groups: np.ndarray | None = field(default=None, repr=False)
+    #: at each sample, with ``swim(budget=True)``: the stroke phase (0..1) of the basic layer
+    phase: np.ndarray | None = field(default=None, repr=False)
+    #: at each sample, with ``swim(budget=True)``: the whole body's kinetic energy [J] and
+    #: the part of it in the motion relative to the centre of mass [J]
+    kinetic: np.ndarray | None = field(default=None, repr=False)
     #: the approach's switches between swimming and treading water
     #: (:meth:`flapsim.swim.arrival.Approach.summary`), if one ran
     approach: dict | None = None
@@ -321,6 +337,9 @@ class SwimResult:
             **self._limbs_summary(sel),
             **({"water_budget": summarize_budget(self.water_rates[sel])}
                if self.water_rates is not None and sel.any() else {}),
+            **({"joint_budget": summarize_joints(self.joint_power[sel], self.joint_groups)}
+               if self.joint_power is not None and self.joint_groups is not None and sel.any()
+               else {}),
             "head_horizontal_drift_max_m": float(drift.max()),
             "wall_s": self.wall_s,
             "realtime_factor": self.seconds / self.wall_s if self.wall_s > 0 else None,
@@ -338,6 +357,36 @@ def step_muscle_power(d: mujoco.MjData, damping: np.ndarray, qvel_before: np.nda
     implicit damping), converging only as the step shrinks."""
     v1 = d.qvel[6:]
     return (d.qfrc_actuator[6:] - damping * v1) * (0.5 * (qvel_before[6:] + v1))
+
+
+def step_joint_powers(d: mujoco.MjData, damping: np.ndarray, qvel_before: np.ndarray
+                      ) -> np.ndarray:
+    """(joint dofs, 4) each joint dof's power over the physics step just taken [W]: the
+    muscle's net (:func:`step_muscle_power`), its positive part, the damping's share of
+    the net (``-damping v1 v_mean``, the PD's velocity term, negative where it brakes) and
+    the constraint force's (joint limits, contacts: ``qfrc_constraint v_mean``). Call after
+    ``mj_step``."""
+    v1 = d.qvel[6:]
+    vm = 0.5 * (qvel_before[6:] + v1)
+    net = (d.qfrc_actuator[6:] - damping * v1) * vm
+    return np.stack([net, np.maximum(net, 0.0), -damping * v1 * vm,
+                     d.qfrc_constraint[6:] * vm], axis=1)
+
+
+def kinetic_energies(m: mujoco.MjModel, d: mujoco.MjData, scratch: mujoco.MjData,
+                     root: int) -> tuple[float, float]:
+    """The whole body's kinetic energy and its part relative to the centre of mass [J]
+    (König: total less 1/2 M V^2), from ``d``'s state computed afresh in ``scratch``."""
+    scratch.qpos[:] = d.qpos
+    scratch.qvel[:] = d.qvel
+    mujoco.mj_fwdPosition(m, scratch)
+    mv = np.zeros(m.nv)
+    mujoco.mj_mulM(m, scratch, mv, scratch.qvel)
+    total = 0.5 * float(scratch.qvel @ mv)
+    mujoco.mj_comVel(m, scratch)
+    mujoco.mj_subtreeVel(m, scratch)
+    v = scratch.subtree_linvel[root]
+    return total, total - 0.5 * float(m.body_subtreemass[root]) * float(v @ v)
 
 
 def _roll(d: mujoco.MjData, body: int) -> float:
@@ -463,6 +512,10 @@ def swim(
                  for n in ("hand_l", "hand_r", "foot_l", "foot_r")]
     limbs: list[np.ndarray] = []
     water: list[np.ndarray] = []
+    joints: list[np.ndarray] = []  # per dof: mean net, positive, damping, constraint [W]
+    phases: list[float] = []
+    kinetic: list[tuple[float, float]] = []
+    jwork = np.zeros((m.nv - 6, 4))  # per dof work [J] since the last sample
     scratch = mujoco.MjData(m) if budget else None
     pelvis = sw.body["pelvis"]
     renderer = None
@@ -489,7 +542,11 @@ def swim(
                     head.append(d.geom_xpos[head_gid].copy())
                     limbs.append(d.geom_xpos[limb_gids, 2].copy())
                     if budget:
-                        water.append(water_work_rates(sw, d, scratch))
+                        water.append(water_work_rates(sw, d, scratch, per_segment=True))
+                        phases.append(layer.phase)
+                        kinetic.append(kinetic_energies(m, d, scratch, pelvis))
+                        joints.append(jwork / (steps * dt) if steps else np.zeros_like(jwork))
+                        jwork = np.zeros_like(jwork)
                     if steps:  # the mean over the steps since the last sample
                         power.append(work / (steps * dt))
                         power_pos.append(work_pos / (steps * dt))
@@ -533,6 +590,9 @@ def swim(
                             limbs.append(limbs[-1])
                             if budget:
                                 water.append(water[-1])
+                                phases.append(phases[-1])
+                                kinetic.append(kinetic[-1])
+                                joints.append(joints[-1])
                             power.append(power[-1])
                             power_pos.append(power_pos[-1])
                             yaw.append(yaw[-1])
@@ -545,6 +605,8 @@ def swim(
                 v_before[:] = d.qvel
                 mujoco.mj_step(m, d)
                 p_dof = step_muscle_power(d, damp, v_before)
+                if budget:
+                    jwork += step_joint_powers(d, damp, v_before) * dt
                 work += float(p_dof.sum()) * dt
                 work_pos += float(p_dof[p_dof > 0.0].sum()) * dt
                 steps += 1
@@ -572,7 +634,12 @@ def swim(
                       aim_heading=np.asarray(aim) if target is not None else None,
                       body_yaw=np.asarray(yaw), carriage=np.asarray(carriage),
                       limbs=np.asarray(limbs),
-                      water_rates=np.asarray(water) if budget else None,
+                      water_rates=fold_segments(np.asarray(water)) if budget else None,
+                      water_rates_segments=np.asarray(water) if budget else None,
+                      joint_power=np.asarray(joints) if budget else None,
+                      joint_groups=dof_groups(m) if budget else None,
+                      phase=np.asarray(phases) if budget else None,
+                      kinetic=np.asarray(kinetic) if budget else None,
                       approach=approach.summary() if approach is not None else None)
 
 

@@ -41,7 +41,12 @@ def test_swim_power_reports_where_the_power_goes(tmp_path, capsys):
     # a steady swim pays its muscles' work into the water: within a third (buoyancy,
     # waves, the joint limits and the swim's own speeding up take the rest)
     assert b["water_w"] == pytest.approx(s["muscle_power_mean_w"], rel=0.35)
-    assert "Froude efficiency" in capsys.readouterr().out
+    # the joint groups' net powers add up to the muscle power (each joint dof in one group)
+    j = s["joint_budget"]
+    assert sum(g["net_w"] for g in j["groups"].values()) == \
+        pytest.approx(s["muscle_power_mean_w"], rel=1e-9)
+    out = capsys.readouterr().out
+    assert "Froude efficiency" in out and "absorbed braking" in out
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -83,3 +83,28 @@ def test_sampling_the_budget_leaves_the_swim_as_it_was() -> None:
     b = swim("crawl", 1.5, SwimmerParams(body_shape="rounded"), layers="basic", budget=True)
     assert np.array_equal(a.com, b.com) and np.array_equal(a.power, b.power)
     assert a.water_rates is None and b.water_rates.shape == (len(b.times), len(GROUPS), 2)
+
+
+def test_the_ideal_paddle_balances_the_drag_and_pays_it_at_the_hands_speed() -> None:
+    from flapsim.swim.budget import ideal_paddle
+
+    v, drag, rate, area, path, cd, rho = 1.2, 36.0, 0.6, 0.04, 1.0, 1.2, 1025.0
+    r = ideal_paddle(v, drag, rate, area, path, cd, rho)
+    u = r["slip_m_s"]
+    # brute force: step each arm's pull in time, the hand backwards relative to the body at
+    # v + u over the path, the water's force 1/2 rho cd A u^2; add the impulse and the work
+    dt = 1e-5
+    n = int(round(path / (v + u) / dt))
+    force = 0.5 * rho * cd * area * u * u
+    impulse = 2 * force * n * dt
+    work = 2 * force * (v + u) * n * dt
+    # 1e-3: the pull's duration rounded to whole 1e-5 s steps
+    assert impulse == pytest.approx(drag / rate, rel=1e-3), "two pulls a cycle hold the drag"
+    assert work * rate == pytest.approx(r["power_w"], rel=1e-3)
+    assert r["froude_efficiency"] == pytest.approx(drag * v / r["power_w"], rel=1e-12)
+    assert r["pull_fraction"] == pytest.approx(n * dt * rate, rel=1e-3)
+    # an ever larger paddle need not slip: the power falls to the drag's, drag x speed
+    big = ideal_paddle(v, drag, rate, 1e8, path, cd, rho)
+    assert big["power_w"] == pytest.approx(drag * v, rel=1e-3)
+    with pytest.raises(ValueError):
+        ideal_paddle(v, drag, rate, 0.0, path)

@@ -145,7 +145,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--power", action="store_true",
                    help="also report where the power goes in the water: per segment, the part "
                         "that moves the body and the slip that only stirs the water, and the "
-                        "arms' Froude efficiency (swimmers' crawl: 0.44-0.61)")
+                        "arms' Froude efficiency (swimmers' crawl: 0.44-0.61); and per joint "
+                        "group the muscles' net power and the braking they absorb")
     p.add_argument("--table", metavar="FILE.json", default=None,
                    help="per-cycle calibration table to use (or, with --calibrate, to write); "
                         "default: <stroke>.cycle.json next to the stroke file")
@@ -311,6 +312,14 @@ def _print_budget(b: dict) -> None:
         f"{g} {r['water_w']:.0f} W ({r['slip_w']:.0f} slip)" for g, r in rows if r["water_w"] > 1.0))
 
 
+def _print_joints(j: dict) -> None:
+    """The muscles' budget per joint group taking over 1 W (net, and the braking absorbed)."""
+    rows = sorted(j["groups"].items(), key=lambda kv: -abs(kv[1]["net_w"]))
+    print(f"  joints           {j['net_w']:.0f} W net, {j['negative_w']:.0f} W absorbed braking; "
+          + ", ".join(f"{g} {r['net_w']:.0f} W ({r['negative_w']:.0f} absorbed)" for g, r in rows
+                      if abs(r["net_w"]) > 1.0 or r["negative_w"] > 1.0))
+
+
 def run(args: argparse.Namespace) -> dict:
     layers = _layers(args)
     kw = {"buoyancy_method": args.buoyancy, "r_min": args.r_min, "r_max": args.r_max,
@@ -435,6 +444,8 @@ def run(args: argparse.Namespace) -> dict:
               f"+-{s['roll_hips_deg']:.0f} deg hips; trunk incline {s['trunk_incline_deg']:.0f} deg")
     if "water_budget" in s:
         _print_budget(s["water_budget"])
+    if "joint_budget" in s:
+        _print_joints(s["joint_budget"])
     print(f"  layers           {' + '.join(s['layers'])}")
     if "target" in s:
         t = s["target"]
