@@ -381,9 +381,10 @@ def test_eval_options_reach_every_flight(monkeypatch):
         5.5, 0.1, 30.0, 50.0)
     # the lowest speed asked for a turn is never above the speed asked
     assert second.turn_speed_floor == 5.5
+    assert first.max_climb_deg == second.max_climb_deg == 15.0
     assert dataclasses.replace(second, speed=7.0, **{f: getattr(task, f) for f in (
         "bank_lead_s", "aoa_per_g_deg", "max_bank_deg", "climb_per_speed_deficit",
-        "turn_load_factor", "turn_speed_floor")}) == task
+        "max_climb_deg", "turn_load_factor", "turn_speed_floor")}) == task
 
 
 def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
