@@ -62,8 +62,11 @@ def _start_xvfb() -> tuple[subprocess.Popen, int]:
             for n in range(91, 190):
                 if _display_taken(n):
                     continue
+                # -noreset: by default the server resets when its last client leaves (the
+                # fixture's own probe), and a client connecting during the reset was refused
                 proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x800x24", "-nolisten",
-                                         "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                         "tcp", "-noreset"], stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.DEVNULL)
                 # the lock is held until the server has claimed the number
                 for _ in range(200):
                     if Path(f"/tmp/.X11-unix/X{n}").exists() or proc.poll() is not None:

@@ -48,6 +48,7 @@ import math
 import os
 import platform
 import socket
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -465,7 +466,13 @@ def display_problem(display: str | None = None) -> str | None:
     x11.XOpenDisplay.restype = ctypes.c_void_p
     x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
     x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
-    handle = x11.XOpenDisplay(name.encode())
+    # a few tries: a server that is resetting (its last client just left) or busy refuses a
+    # connection for a moment
+    for attempt in range(4):
+        handle = x11.XOpenDisplay(name.encode())
+        if handle:
+            break
+        time.sleep(0.25 * (attempt + 1))
     if not handle:
         return (f"cannot open display {name} (no X server answers there): start one (Xvfb "
                 f"{name} &), or render offscreen with --video")
