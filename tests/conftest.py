@@ -17,6 +17,14 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 from flapsim.core.callbacks import DISPATCHER
 
 
+def pytest_collection_modifyitems(config, items):
+    """Files holding a slow test first (the order otherwise kept): ``-n auto --dist loadfile``
+    hands files out in this order, and a long file handed out last kept one worker busy for
+    minutes after the other had finished."""
+    slow_files = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow_files)
+
+
 @pytest.fixture(autouse=True)
 def _clean_dispatcher(request):
     yield

@@ -216,119 +216,6 @@ def test_eval_follows_a_users_3_m_circle_by_slowing_into_it(tmp_path):
     assert sum(r.status == "lost" for r in alone) >= 4, [r.metrics["max_path_distance"] for r in alone]
 
 
-@pytest.mark.slow
-def test_modal_feathers_train_and_evaluate_end_to_end(tmp_path, capsys):
-    # a modal database is bound to the modal dove: eval flies the modal dove with it (a
-    # 'failed' run would mean the feathers were not passed through and the model hash
-    # refused the database), and refuses the rigid dove's bundled one in one line
-    db = tmp_path / "modal.db"
-    assert main(["train", "--samples", "40", "--feathers", "modal", "--workers", "1",
-                 "--no-progress", "--out", str(db)]) == 0
-    from flapsim.bird.body.model import Dove
-    from flapsim.bird.control.database import load_database
-
-    h = load_database(db, require_finalized=True).header
-    assert h["model_hash"] == Dove.load(feathers="modal").hash() != Dove.load().hash()
-    js = tmp_path / "e.json"
-    rc = main(["eval", "--scenario", "wind-gusts", "--quick", "--feathers", "modal", "--db", str(db),
-               "--workers", "1", "--video", str(tmp_path / "v"), "--json", str(js)])
-    r = json.loads(js.read_text())["scenarios"][0]
-    assert r["status"] in ("completed", "lost") and rc == (0 if r["ok"] else 1), r
-    # its video, drawn on the modal model (its qpos has the modes' coordinates)
-    assert (tmp_path / "v" / "wind-gusts.mp4").stat().st_size > 10_000
-    capsys.readouterr()
-    from flapsim.bird.control.controller import bundled_database_path
-
-    assert main(["eval", "--scenario", "wind-gusts", "--feathers", "modal", "--db",
-                 str(bundled_database_path())]) == 2
-    err = capsys.readouterr().err
-    assert "--feathers rigid" in err and len(err.strip().splitlines()) == 1, err
-
-
-@pytest.mark.slow
-def test_every_flight_scenario_runs_its_quick_variant_to_a_verdict(tmp_path):
-    # every runner end to end (short variants, two worker processes): each gives a verdict
-    # and its own numbers; 'failed' (a runner's error) or 'diverged' would be a bug here
-    from flapsim.scenarios.runner import execute
-
-    names = scenarios.names(family="flight", all_only=True)
-    opts = scenarios.EvalOptions(quick=True, plots_dir=str(tmp_path))
-    results = execute([(n, opts) for n in names], workers=2)
-    assert [r["scenario"] for r in results] == names
-    for r in results:
-        assert r["status"] in ("completed", "lost"), r
-        assert r["ok"] == (r["status"] == "completed")
-    by = {r["scenario"]: r for r in results}
-    assert by["flock"]["metrics"]["birds"] == 2 and by["flock"]["metrics"]["min_separation_m"] > 0
-    for d in ("front", "back", "left", "right", "up", "down"):
-        assert [row["newtons"] for row in by[f"push-{d}"]["metrics"]["table"]] == [8.0]
-    assert by["forest"]["metrics"]["trees"] > 10
-    # a plot per flown path (pushes: one per force; flock: one per bird)
-    assert len(list(tmp_path.glob("*.png"))) >= len(names)
-
-
-def test_sigterm_stops_eval_and_its_workers_leaving_no_file(tmp_path, sigterm_with_workers):
-    # two long runs on two worker processes, stopped mid-flight: exit 143, no JSON, no plot
-    # and no hidden temporary file in the plots folder, no worker left alive
-    (tmp_path / "plots").mkdir()
-    status, err, alive = sigterm_with_workers(
-        ["eval", "--scenario", "figure8-level,figure8", "--workers", "2", "--plots", "plots",
-         "--json", "e.json"], tmp_path, settle_s=3.0)  # the workers are flying
-    assert status == 143, err
-    assert err.strip().splitlines()[-1] == "flapsim eval: terminated (SIGTERM)"
-    assert not alive
-    assert sorted(p.name for p in tmp_path.rglob("*")) == ["plots"]
-
-
-@pytest.mark.slow
-def test_table1_trains_its_databases_and_counts_k_among_the_searched_samples(tmp_path, capsys):
-    # tiny databases (100 and 200 samples) on the quick figure of eight: the point is the
-    # sweep's bookkeeping, not the flights. k is the paper's share of the samples the
-    # regression searches: with the mirror images 2n, so 0.5 % of 2 x 200 = 2; the k sweep is on
-    # the largest database: 2 / 1 / 0.3 % of 400 = 8 / 4 / 1
-    js = tmp_path / "t1.json"
-    main(["eval", "--table1", "--sizes", "100,200", "--quick", "--cache", str(tmp_path / "dbs"),
-          "--workers", "2", "--json", str(js)])
-    out = json.loads(js.read_text())
-    rows = out["table1"]
-    # the bundled database's seed by default (its header: seed 2), in the databases made too
-    from flapsim.bird.control.database import load_database
-
-    assert out["seed"] == 2
-    assert load_database(tmp_path / "dbs" / "phase1_100.db").header["seed"] == 2
-    assert [(r["samples"], r["k_percent"], r["k"]) for r in rows] == [
-        (100, 0.5, 1), (200, 0.5, 2), (200, 2.0, 8), (200, 1.0, 4), (200, 0.3, 1)]
-    assert (tmp_path / "dbs" / "phase1_200.db").exists()
-    assert "Table I on figure8" in capsys.readouterr().out
-
-
-@pytest.mark.slow
-def test_the_modal_dove_survives_an_8_newton_push_backwards():
-    """The modal-feather dove under its bundled database, pushed back (against its flight) by
-    8 N for 0.1 s (0.8 N s: 4.7 m/s taken from its 7) on the push scenarios' 60 m path,
-    survives by their criterion: within the 10 m tube, the path's end reached, back within
-    1.5 m of its line. The end's distance from the path's line is 0.59-0.63 m over these five
-    starts under 1 mm/s apart (measured to the path's end point instead, 0.91-1.48 m: the
-    flight ends 1-2 wingbeats past it), 2.2-2.3 m off at most on the way; it is asserted over
-    the five starts' median, which passes 1.5 m only if three starts do; the tube and the
-    path's end on every one."""
-    from flapsim.bird.tasks import path_shapes as paths
-    from flapsim.bird.tasks.flight_tasks import Task, fly_task
-    from flapsim.scenarios.flight import PUSH_BACK_M, PUSH_TUBE_M
-
-    ends = []
-    for dv in (0.0, 0.0007, -0.0004, 0.0002, -0.0009):  # m/s of start speed
-        task = Task(paths.straight(60.0), pushes=(PushSpec(1.0, 8.0, "back"),), tube_m=PUSH_TUBE_M,
-                    feathers="modal", start_speed_change=dv)
-        r = fly_task(task)
-        assert r.status == "completed", r.reason
-        ends.append(task.path.off_path(r.positions[-1]))
-        # the push really slowed it: the lowest speed over the flight is well below cruise
-        v = np.linalg.norm(np.diff(r.positions, axis=0), axis=1) / np.diff(r.times)
-        assert v.min() < 5.5
-    assert np.median(ends) <= PUSH_BACK_M, ends
-
-
 def test_what_a_path_asks_per_wingbeat_is_the_arc_over_the_radius():
     # a bird exactly on a circle of radius R, flying d per wingbeat: the path's heading turns
     # d / R rad a wingbeat (left, +); along the reversed circle, -d / R. The spline's
@@ -385,35 +272,6 @@ def test_eval_options_reach_every_flight(monkeypatch):
     assert dataclasses.replace(second, speed=7.0, **{f: getattr(task, f) for f in (
         "bank_lead_s", "aoa_per_g_deg", "max_bank_deg", "climb_per_speed_deficit",
         "max_climb_deg", "turn_load_factor", "turn_speed_floor")}) == task
-
-
-def test_table1_runs_fly_the_papers_controller_whatever_else_was_asked():
-    """Every Table I run is the paper's protocol (sec. 7): k fixed, the bank of the wingbeat's
-    end, P0 every wingbeat, the trim's angle of attack in turns, the speed asked everywhere,
-    independent speed and height loops; what the run was asked otherwise is overridden."""
-    from flapsim.bird.control.config import ControllerConfig
-    from flapsim.bird.tasks.config import PathControlConfig
-    from flapsim.scenarios import EvalOptions
-    from flapsim.scenarios.runner import paper_protocol
-
-    asked = EvalOptions(controller=ControllerConfig(k_dense_share=0.01, carry=0.4, refine=2,
-                                                    clip_request=0.05),
-                        path_control=PathControlConfig(bank_lead_s=0.3, aoa_per_g_deg=30.0,
-                                                       turn_load_factor=1.25,
-                                                       climb_per_speed_deficit=0.1,
-                                                       max_bank_deg=50.0),
-                        speed=6.0)
-    for o in (asked, EvalOptions(), EvalOptions(feathers="modal")):
-        p = paper_protocol(o)
-        c, t = p.controller, p.path_control
-        assert (c.k_dense_share, c.carry, c.refine, t.bank_lead_s, t.aoa_per_g_deg, p.speed,
-                t.turn_load_factor, t.climb_per_speed_deficit) == (0.0, 0.0, 0, 0.0, 0.0, None,
-                                                                    0.0, 0.0)
-        assert c.reference_hz == 0.0  # S0 at the flight's own rate
-        # the dove's own bank cap
-        assert t.max_bank_deg == PathControlConfig.for_dove(o.feathers).max_bank_deg
-    # what the protocol does not fix stays as asked
-    assert paper_protocol(asked).controller.clip_request == 0.05
 
 
 def test_wilsons_interval_is_its_closed_form():
@@ -615,34 +473,6 @@ def test_the_steering_in_the_tube_stops_where_the_bird_left_it():
     assert 0 < inside < len(r.steering_deg)
     assert r.metrics["steering_range_in_tube_deg"] == [float(np.min(r.steering_deg[:inside])),
                                                        float(np.max(r.steering_deg[:inside]))]
-
-
-def test_sigterm_while_table1_trains_exits_143_and_leaves_nothing(tmp_path, sigterm_with_workers):
-    """SIGTERM while --table1 trains its databases printed "interrupted" and exited 130,
-    while --help promises 143. Sent as its sampling workers start: 143, "terminated", no
-    worker left, and nothing in the folder: no JSON, no journal without a sample, not even
-    the cache folder the command made."""
-    status, err, alive = sigterm_with_workers(
-        ["eval", "--table1", "--sizes", "100", "--quick", "--cache", "dbs", "--workers", "2",
-         "--json", "t.json"], tmp_path, settle_s=0.3)  # before a chunk can be done
-    assert status == 143, err
-    assert err.strip().splitlines()[-1] == "flapsim eval: terminated (SIGTERM)", err
-    assert not alive
-    assert list(tmp_path.iterdir()) == []
-
-
-def test_an_interrupted_table1_says_its_samples_are_kept(tmp_path):
-    """Stopped once a chunk is kept, the line says where the samples are and how to resume."""
-    import argparse
-
-    from flapsim.cli.commands.eval import resume_hint
-
-    args = argparse.Namespace(json=None, table1=True, cache=str(tmp_path / "dbs"))
-    assert resume_hint(args) == ""  # nothing trained yet
-    (tmp_path / "dbs").mkdir()
-    (tmp_path / "dbs" / "phase1_100.db").write_bytes(b"")
-    assert resume_hint(args) == (f"; the samples trained so far are kept in {tmp_path / 'dbs'}: "
-                                 "run the same command again to resume")
 
 
 def test_every_flight_scenario_flies_at_its_databases_speed(monkeypatch):
