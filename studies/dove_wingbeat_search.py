@@ -5,7 +5,10 @@ every candidate is a wingbeat it could draw).
 
     python studies/dove_wingbeat_search.py --objective cruise|climb|steady-climb|steer
         [--bound 3] [--speed 7] [--workers 2] [--maxiter 60] [--popsize 10] [--seed 0]
-        [--json out.json]
+        [--cruise] [--json out.json]
+
+``--cruise`` searches around the cruise dove instead (its capture's reference and spread, tail
+bias 26 deg, the bird wing's section and the induced flow: ``flapsim fly --cruise``).
 
 Each candidate is flown free, repeated ``--wingbeats`` times from the standard cruise start
 (level, at ``--speed``), and measured over wingbeats ``--skip``.. by
@@ -50,7 +53,7 @@ from scipy.optimize import differential_evolution
 from flapsim.bird.body.model import Dove
 from flapsim.bird.body.params import MIRROR_PERM
 from flapsim.bird.flight.capture import reference_capture
-from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.bird.flight.dove_flight import CRUISE, DoveFlight, FlightConfig
 from flapsim.bird.flight.power import wingbeat_balance
 from flapsim.bird.flight.wingbeat import N_PARAMS, p0, reference_wingbeat, with_tail_bias
 from flapsim.bird.training.sampling import capture_wingbeats
@@ -62,10 +65,21 @@ from flapsim.core.io import write_json
 FREE = np.array([i for j in (*range(6), 12, 13) for i in (2 * j, 2 * j + 1)] + [N_PARAMS - 1])
 
 
-def capture_spread() -> np.ndarray:
+def capture_spread(preset: str = "slow") -> np.ndarray:
     """Each parameter's standard deviation over the capture cycles (fitted against the
     reference), the unit of the search's bounds."""
-    return capture_wingbeats(reference_capture(), reference_wingbeat()).dP.std(0)
+    return capture_wingbeats(reference_capture(preset=preset), reference_wingbeat(preset)).dP.std(0)
+
+
+def dove_setup(cruise: bool) -> tuple[DoveFlight, np.ndarray, np.ndarray]:
+    """The flight searched (the paper's dove, or the cruise dove), its P0 with the tail bias
+    and the capture's spread."""
+    if cruise:
+        fl = DoveFlight(Dove.load(induced=True), reference_wingbeat("cruise"), table=CRUISE.table,
+                        use_rollout=False)
+        return fl, with_tail_bias(p0(), CRUISE.tail_bias_deg), capture_spread("cruise")
+    fl = DoveFlight(Dove.load(), use_rollout=False)
+    return fl, with_tail_bias(p0(), FlightConfig.tail_bias_deg), capture_spread()
 
 
 def expand(x: np.ndarray, base: np.ndarray, spread: np.ndarray) -> np.ndarray:
@@ -111,12 +125,10 @@ _WORKER: dict = {}
 
 
 def _evaluate(x: np.ndarray, objective: str, wingbeats: int, skip: int,
-              speed: float, min_speed: float, max_pitch: float) -> float:
+              speed: float, min_speed: float, max_pitch: float, cruise: bool = False) -> float:
     """One candidate (in a worker process: its flight built once)."""
     if "fl" not in _WORKER:
-        _WORKER["fl"] = DoveFlight(Dove.load(), use_rollout=False)
-        _WORKER["base"] = with_tail_bias(p0(), FlightConfig.tail_bias_deg)
-        _WORKER["spread"] = capture_spread()
+        _WORKER["fl"], _WORKER["base"], _WORKER["spread"] = dove_setup(cruise)
     p = expand(x, _WORKER["base"], _WORKER["spread"])
     return score(wingbeat_balance(_WORKER["fl"], p, wingbeats, skip, speed), objective, skip,
                  {"min_speed": min_speed, "max_pitch": max_pitch})
@@ -138,6 +150,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--maxiter", type=int, default=60)
     ap.add_argument("--popsize", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--cruise", action="store_true",
+                    help="around the cruise dove (its capture, bird-wing section, induced flow)")
     ap.add_argument("--json", default=None)
     return ap
 
@@ -147,7 +161,7 @@ def main(argv: list[str] | None = None) -> None:
     a = ap.parse_args(argv)
     if not 1 <= a.skip < a.wingbeats:
         ap.error("need 1 <= --skip < --wingbeats")
-    args = (a.objective, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch)
+    args = (a.objective, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch, a.cruise)
     t = time.perf_counter()
     gen = [0]
 
@@ -163,8 +177,7 @@ def main(argv: list[str] | None = None) -> None:
                                  workers=a.workers, updating="deferred", polish=False,
                                  init="sobol", x0=np.zeros(n_free), callback=report)
     wall = time.perf_counter() - t
-    fl = DoveFlight(Dove.load(), use_rollout=False)
-    base, spread = with_tail_bias(p0(), FlightConfig.tail_bias_deg), capture_spread()
+    fl, base, spread = dove_setup(a.cruise)
     best_p = expand(res.x, base, spread)
     rows = {"P0": wingbeat_balance(fl, base, a.wingbeats, a.skip, a.speed),
             "best": wingbeat_balance(fl, best_p, a.wingbeats, a.skip, a.speed)}
@@ -179,7 +192,7 @@ def main(argv: list[str] | None = None) -> None:
     if a.json:
         write_json(a.json, {"objective": a.objective, "bound_spreads": a.bound, "speed": a.speed,
                             "wingbeats": a.wingbeats, "skip": a.skip, "min_speed": a.min_speed,
-                            "max_pitch": a.max_pitch, "score": float(res.fun),
+                            "max_pitch": a.max_pitch, "cruise": a.cruise, "score": float(res.fun),
                             "x_spreads": res.x.tolist(), "wingbeat": best_p.tolist(),
                             "candidates": int(res.nfev), "wall_s": wall, "flights": rows,
                             "environment": versions()})
