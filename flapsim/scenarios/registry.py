@@ -82,6 +82,10 @@ class EvalOptions:
     :attr:`flapsim.bird.tasks.flight_tasks.Task.start_speed_change`)."""
     layers: str = "all"
     """Swim: control layers (basic, cycle, all)."""
+    body: str = "box"
+    """Swim: the hydrodynamic surface, ``box`` or ``rounded``
+    (:attr:`flapsim.swim.model.SwimmerParams.body_shape`); the rounded body swims its own
+    tuning of a stroke where there is one (:func:`flapsim.swim.strokes.stroke_for_body`)."""
     feathers: str = "rigid"
     """Flight: feather model."""
     plots_dir: str | None = None

@@ -14,7 +14,8 @@ after the first two cycles (the start from rest):
   within the look-ahead), None if never.
 
 ``options.plots_dir``: a PNG of the swimmer's and the target's paths (top view; side
-view for targets below the surface). ``options.video_dir``: an mp4. ``options.quick``:
+view for targets below the surface). ``options.body``: the box or the rounded body
+(its own crawl). ``options.video_dir``: an mp4. ``options.quick``:
 a few seconds only (tests, smoke runs). Swimming is deterministic: ``options.seed``
 changes nothing.
 """
@@ -22,6 +23,7 @@ changes nothing.
 from __future__ import annotations
 
 import contextlib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +37,7 @@ from flapsim.swim.goals import Circle, Point, Waypoints, figure_eight, load_traj
 from flapsim.swim.model import SwimmerParams
 from flapsim.swim.plots import track_plot
 from flapsim.swim.simulate import swim
+from flapsim.swim.strokes import stroke_for_body
 
 TRAJECTORY_FILE = Path(__file__).resolve().parents[1] / "swim" / "data" / "trajectories" / "zigzag.csv"
 #: a cross current's speed in the paper's Fig. 15 task here [m/s]
@@ -58,8 +61,10 @@ def _swim(sc: Scenario, opt: EvalOptions, target, seconds: float, tag: str = "",
                                                         quality=7))
             fps = opt.fps
             files.append(str(out))
-        r = swim(sc.params["stroke"], seconds, target=target, layers=opt.layers, video_fps=fps,
-                 video_size=(opt.size[1], opt.size[0]), on_frame=on_frame, **kw)
+        kw["params"] = replace(kw.get("params") or SwimmerParams(), body_shape=opt.body)
+        r = swim(stroke_for_body(sc.params["stroke"], opt.body), seconds, target=target,
+                 layers=opt.layers, video_fps=fps, video_size=(opt.size[1], opt.size[0]),
+                 on_frame=on_frame, **kw)
     if opt.plots_dir:
         out = Path(opt.plots_dir) / f"{stem}.png"
         track_plot(r, str(out), title=f"{stem}: {r.stroke}, layers {opt.layers}")

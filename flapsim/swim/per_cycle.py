@@ -14,9 +14,14 @@ The tables come from pre-simulation in still water (:func:`calibrate`, ``flapsim
 start of several cycles (cycles 0, 1, 2, 4: speeds from rest to full speed); from each,
 one cycle is swum with each sequence at each weight (0.25 .. 1), and the turn is the
 attitude at the end of that cycle minus the attitude of the unperturbed cycle from the
-same state. Parallel (:class:`flapsim.core.parallel.ChunkExecutor`), resumable (finished
-chunks are journalled to ``OUT.partial.jsonl``), stored as JSON with provenance;
-bundled strokes ship theirs next to the stroke file (``<name>.cycle.json``).
+same state. A stroke whose turn keeps building for cycles after its yaw sequence
+starts (:attr:`flapsim.swim.strokes.Stroke.cycle_hold` N > 1) holds each yaw sequence,
+and the reference, for N cycles; its yaw turn is the mean turn per cycle after the
+first, ((end N - end 1) minus the reference's) / (N - 1): the neck bend that moves the
+measured body line is there at both ends and cancels. Parallel
+(:class:`flapsim.core.parallel.ChunkExecutor`), resumable (finished chunks are journalled
+to ``OUT.partial.jsonl``), stored as JSON with provenance; bundled strokes ship theirs next
+to the stroke file (``<name>.cycle.json``).
 
 Attitude (:func:`attitude`) is that of the upper trunk (thorax): yaw = horizontal
 direction of its forward axis (head-ward when prone, anterior when upright) [rad, +
@@ -50,7 +55,14 @@ from flapsim.swim.continuous import HandRules, calibration_settings
 from flapsim.swim.feedback import wrap_angle
 from flapsim.swim.layers import BasicStrokeLayer, FeedbackLayer
 from flapsim.swim.model import Swimmer, SwimmerParams, check_diverged
-from flapsim.swim.strokes import CYCLE_SEQUENCES, STROKE_DIR, Stroke, load_stroke, stroke_tables
+from flapsim.swim.strokes import (
+    CYCLE_SEQUENCES,
+    STROKE_DIR,
+    Stroke,
+    load_stroke,
+    steering_problem,
+    stroke_tables,
+)
 
 log = logging.getLogger(__name__)
 
@@ -243,7 +255,11 @@ SPEED_GAIN = 0.7
 
 
 class CycleLayer:
-    """Call :meth:`update` at the control rate (it acts once per cycle)."""
+    """Call :meth:`update` at the control rate (it acts once per cycle).
+
+    The heading error asked of a cycle is ``gain`` x the stroke's ``cycle_gain`` x (the
+    target's heading minus the body line's, less ``cycle_lead`` x the turn the pelvis
+    made over the last cycle); pitch and roll errors are asked at ``gain``."""
 
     def __init__(self, basic: BasicStrokeLayer, table: CycleTable, target: object | None = None,
                  feedback: object | None = None, gain: float = 1.0,
@@ -281,8 +297,14 @@ class CycleLayer:
         self.forward_axis = 2 if st.posture == "prone" else 0
         self._n = basic.tables.q.shape[0]
         self._base = basic.base_tables
+        problem = steering_problem(st.cycle_hold, st.cycle_gain, st.cycle_lead)
+        if problem:
+            raise InputError(f"stroke {st.name!r}: {problem}")
         self._cycle = -1
         self.weights = {k: 0.0 for k in st.cycle}
+        #: the pelvis axis's yaw at the last decision [rad] (None: none yet), for the
+        #: stroke's ``cycle_lead``
+        self._yaw_last: float | None = None
         #: per decision: time, speed, heading error, pitch error, roll error, weights
         self.history: list[dict] = []
 
@@ -290,6 +312,7 @@ class CycleLayer:
         """Decide again at the next update (and weights back to 0 until then)."""
         self._cycle = -1
         self.weights = {k: 0.0 for k in self.basic.stroke.cycle}
+        self._yaw_last = None
         # the next speed hold starts afresh: a cycle swum under other layers (a dive,
         # treading water) says nothing about this stroke's rate
         self._last = None
@@ -320,7 +343,19 @@ class CycleLayer:
             self._hold_speed(data)
         off, level = self.table.baseline(speed)
         att = attitude(data, self.trunk, self.forward_axis, self.head) - off
-        errors = {"yaw": 0.0 if heading is None else wrap_angle(heading - att[0]),
+        st = self.basic.stroke
+        yaw_error = 0.0 if heading is None else wrap_angle(heading - att[0])
+        if st.cycle_lead:
+            # a turn that goes on building after its sequence: aim from where the last
+            # cycle's turn carries the swimmer. That turn is measured on the pelvis's own
+            # axis at the same phase of both cycles: a change of neck bend swings the body
+            # line (pelvis to head) without turning the swimmer. Not wrapped again: a fast
+            # turn the wrong way must not flip the error's sign past 180 deg
+            yaw = float(attitude(data, self.trunk, self.forward_axis)[0])
+            if self._yaw_last is not None and heading is not None:
+                yaw_error -= st.cycle_lead * wrap_angle(yaw - self._yaw_last)
+            self._yaw_last = yaw
+        errors = {"yaw": yaw_error,
                   "pitch": 0.0 if elev is None else
                   float(np.clip(elev, -MAX_PITCH, MAX_PITCH)) - (att[1] - level[0]),
                   "roll": -(att[2] - level[1])}
@@ -331,7 +366,7 @@ class CycleLayer:
         w = {}
         for name in self.basic.stroke.cycle:
             axis, sign = CYCLE_SEQUENCES[name]
-            want = self.gain * errors[axis] * sign
+            want = self.gain * errors[axis] * sign * (st.cycle_gain if axis == "yaw" else 1.0)
             w[name] = self.table.weight_for(name, speed, want)
         self.weights = w
         active = {k: v for k, v in w.items() if v > 0.0}
@@ -393,6 +428,13 @@ class CalibrationConfig:
     #: the continuous layer's settings the "all" tables are made with
     #: (:func:`flapsim.swim.continuous.calibration_settings`)
     hand_rules: dict = field(default_factory=lambda: calibration_settings())
+    #: cycles each yaw sequence (and the reference) is swum from a snapshot: the
+    #: stroke's ``cycle_hold``; pitch and roll sequences are swum one cycle
+    hold: int = 1
+
+    def cycles_of(self, seq: str | None) -> int:
+        """Cycles job ``seq`` swims (None: the reference)."""
+        return self.hold if seq is None or CYCLE_SEQUENCES[seq][0] == "yaw" else 1
 
     def sequences(self) -> list[str]:
         return [n for n in CYCLE_SEQUENCES if n in load_stroke(self.stroke).cycle]
@@ -522,12 +564,20 @@ class CalibrationWorker:
         layer.extra_on = hands is not None
         start = attitude(sw.data, self.trunk, self.fwd, self.head)
         speed = float(np.linalg.norm(sw.com_velocity()))
+        ends, means = [], []
         with sw:
-            end, mean = _swim_cycle(sw, layer, self.trunk, self.fwd, self.head, self.fb, hands)
+            for _ in range(self.config.cycles_of(seq)):
+                end, m = _swim_cycle(sw, layer, self.trunk, self.fwd, self.head, self.fb, hands)
+                ends.append(end.tolist())
+                means.append(m)
+        mean = means[0]  # the first cycle's (the reference's offsets are one cycle's)
         layer.set_tables(self.base)
         layer.extra_on = False
-        return {"i": i, "layers": mode, "snapshot": k, "sequence": seq, "weight": w, "speed": speed,
-                "start": start.tolist(), "end": end.tolist(), "mean": mean.tolist()}
+        out = {"i": i, "layers": mode, "snapshot": k, "sequence": seq, "weight": w,
+               "speed": speed, "start": start.tolist(), "end": ends[0], "mean": mean.tolist()}
+        if len(ends) > 1:
+            out["ends"] = ends
+        return out
 
     def run_chunk(self, start: int, stop: int) -> list[dict]:
         return [self.run_job(i) for i in range(start, stop)]
@@ -547,7 +597,13 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
             continue
         axis, sign = CYCLE_SEQUENCES[r["sequence"]]
         j = ("yaw", "pitch", "roll").index(axis)
-        d = r["end"][j] - ref[r["snapshot"]]["end"][j]
+        n = config.cycles_of(r["sequence"])
+        if n > 1:  # held: the mean turn per cycle after the first
+            e, e0 = r["ends"][n - 1][j], r["ends"][0][j]
+            f, f0 = ref[r["snapshot"]]["ends"][n - 1][j], ref[r["snapshot"]]["ends"][0][j]
+            d = (wrap_angle(e - e0) - wrap_angle(f - f0)) / (n - 1)
+        else:
+            d = r["end"][j] - ref[r["snapshot"]]["end"][j]
         if axis == "yaw":
             d = wrap_angle(d)
         angles[r["sequence"]][r["snapshot"], config.weights.index(r["weight"])] = sign * d
@@ -565,7 +621,10 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
             "swimmer_params": asdict(SwimmerParams(**config.params)),
             "method": "one cycle from the state at each snapshot cycle start of straight "
                       "swimming from rest with the same layers, still water; turn = attitude "
-                      "at the cycle's end minus the unperturbed cycle's",
+                      "at the cycle's end minus the unperturbed cycle's" + (
+                          "" if config.hold == 1 else
+                          f"; yaw sequences held {config.hold} cycles, turn = the mean per "
+                          "cycle after the first, minus the unperturbed cycles'"),
             "snapshot_cycles": list(config.snapshot_cycles)}
     return CycleTable(load_stroke(config.stroke).name, sp, np.asarray(config.weights, float),
                       {s: a[order] for s, a in angles.items()}, offsets[order], level[order], prov)
@@ -587,6 +646,12 @@ def _job_problem(r: object, jobs: list) -> str | None:
                 isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
                 for x in v)):
             return f"result {i} has no finite {key!r} numbers"
+    ends = r.get("ends", [[0.0]])  # a held cycle's attitude at each cycle's end
+    if not (isinstance(ends, list) and ends and all(
+            isinstance(e, list) and e and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in e) for e in ends)):
+        return f"result {i} has no finite 'ends' numbers"
     return None
 
 
@@ -648,9 +713,13 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
         st, (params or {}).get("body_shape", "box"), for_writing=True)
     if out is None:
         out_p.parent.mkdir(parents=True, exist_ok=True)
+    problem = steering_problem(st.cycle_hold, st.cycle_gain, st.cycle_lead)
+    if problem:
+        raise InputError(f"stroke {st.name!r}: {problem}")
     config = CalibrationConfig(str(Path(st.path).resolve()), stroke_hash(st),
                                tuple(int(c) for c in sorted(set(snapshot_cycles))),
-                               tuple(float(w) for w in sorted(set(weights))), dict(params or {}))
+                               tuple(float(w) for w in sorted(set(weights))), dict(params or {}),
+                               hold=st.cycle_hold)
     jobs = config.jobs()
     journal = out_p.with_name(out_p.name + ".partial.jsonl")
 

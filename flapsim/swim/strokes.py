@@ -45,6 +45,15 @@ on its own (a rule it does not name acts all cycle)::
 desired direction from the body line towards a target's aim by this times the aim's
 bearing (at most 90 deg; default 0: forwards).
 
+Three top-level settings (optional) shape the per-cycle layer's steering, for a body whose
+turn keeps building for cycles after a yaw sequence starts (docs/design/swimming.md, "A turn
+that builds up: the held calibration")::
+    cycle_hold = 3      # the calibration holds each yaw sequence this many cycles and
+                        # records the mean turn per cycle after the first (default 1)
+    cycle_gain = 0.5    # times the heading error asked of one cycle (default 1)
+    cycle_lead = 1      # aim at the heading this many cycles ahead at the last cycle's
+                        # turn rate (default 0: the heading now)
+
 At the start of every cycle :class:`flapsim.swim.per_cycle.CycleLayer` scales them by
 weights read from the stroke's calibration table (``<name>.cycle.json``, made by
 ``flapsim swim --calibrate``).
@@ -163,6 +172,14 @@ class Stroke:
     #: body line towards the aim by this times the aim's bearing (at most 90 deg); 0:
     #: forwards (:meth:`flapsim.swim.continuous.HandRules.direction`)
     hand_rule_aim: float = 0.0
+    #: cycles each yaw sequence is held in the calibration; the table records the mean
+    #: turn per cycle after the first (1: the one cycle swum, the paper's calibration)
+    cycle_hold: int = 1
+    #: factor on the heading error the per-cycle layer asks of one cycle [-]
+    cycle_gain: float = 1.0
+    #: cycles ahead the per-cycle layer aims: the heading compared with the target's is
+    #: the one measured plus this times the last cycle's turn [cycles]
+    cycle_lead: float = 0.0
 
     def rule_acts(self, rule: str, phase: float) -> bool:
         """Whether the hand rule ``rule`` acts at ``phase`` (:attr:`hand_rule_phases`)."""
@@ -353,7 +370,37 @@ def parse_stroke(raw: dict, path: str | Path = "<stroke>") -> Stroke:
     return Stroke(str(raw.get("name", Path(path).stem)), period, posture, interp, keys,
                   str(raw.get("description", "")), str(path), perturbations, cycle,
                   _parse_phases(raw.get("hand_rule_phases", []), path),
-                  _parse_aim(raw.get("hand_rule_aim", 0.0), path))
+                  _parse_aim(raw.get("hand_rule_aim", 0.0), path),
+                  *_parse_steering(raw, path))
+
+
+#: bounds of the per-cycle steering settings (what a stroke file may ask)
+CYCLE_HOLD_MAX = 10
+CYCLE_GAIN_RANGE = (0.05, 5.0)
+CYCLE_LEAD_MAX = 5.0
+
+
+def steering_problem(hold: object, gain: object, lead: object) -> str | None:
+    """What is wrong with the per-cycle steering settings :attr:`Stroke.cycle_hold`,
+    :attr:`Stroke.cycle_gain`, :attr:`Stroke.cycle_lead` (None: nothing)."""
+    if isinstance(hold, bool) or not isinstance(hold, int) or not 1 <= hold <= CYCLE_HOLD_MAX:
+        return f"cycle_hold must be a whole number of cycles 1..{CYCLE_HOLD_MAX}, got {hold!r}"
+    for key, v, (lo, hi) in (("cycle_gain", gain, CYCLE_GAIN_RANGE),
+                             ("cycle_lead", lead, (0.0, CYCLE_LEAD_MAX))):
+        # NaN fails the range test too
+        if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
+            return f"{key} must be a number in [{lo:g}, {hi:g}], got {v!r}"
+    return None
+
+
+def _parse_steering(raw: dict, path: str | Path) -> tuple[int, float, float]:
+    """``cycle_hold``, ``cycle_gain`` and ``cycle_lead`` (:func:`steering_problem`)."""
+    hold, gain, lead = (raw.get("cycle_hold", 1), raw.get("cycle_gain", 1.0),
+                        raw.get("cycle_lead", 0.0))
+    problem = steering_problem(hold, gain, lead)
+    if problem:
+        raise DataFileError(f"{path}: {problem}")
+    return hold, float(gain), float(lead)
 
 
 def _parse_aim(raw: object, path: str | Path) -> float:

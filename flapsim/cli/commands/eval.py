@@ -64,6 +64,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "there, see docs/flight.md)")
     p.add_argument("--layers", choices=("basic", "cycle", "all"), default="all",
                    help="swimming scenarios: control layers (default all)")
+    p.add_argument("--body", choices=("box", "rounded"), default="box",
+                   help="swimming scenarios: the paper's boxes (default) or the rounded body, "
+                        "which swims its own crawl")
     p.add_argument("--feathers", choices=("rigid", "modal"), default="rigid",
                    help="flight scenarios: feather model (default rigid)")
     p.add_argument("--workers", type=int, default=None,
@@ -191,7 +194,7 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--speed must be 3..12 m/s, got {speed}")
     opts = scenarios.EvalOptions(db=args.db, method=args.method, k=args.k, mirror=args.mirror,
                                  predict=args.predict, controller=controller,
-                                 path_control=path_control, speed=speed, layers=args.layers,
+                                 path_control=path_control, speed=speed, layers=args.layers, body=args.body,
                                  feathers=args.feathers, plots_dir=plots, video_dir=video,
                                  seed=args.seed, path_file=args.path, quick=args.quick,
                                  fps=args.fps, size=video_size(args), slowmo=args.slowmo,

@@ -262,8 +262,10 @@ def calibrate_command(args: argparse.Namespace, params: SwimmerParams) -> dict:
     print(f"per-cycle tables for {args.stroke} written to {out}")
     rows = {}
     for mode, t in tables.items():
+        hold = int((t.provenance.get("config") or {}).get("hold", 1))
         print(f"  layers {mode}: turn per cycle at weight {t.weights[-1]:g} [deg], at "
-              + ", ".join(f"{v:.2f}" for v in t.speeds) + " m/s")
+              + ", ".join(f"{v:.2f}" for v in t.speeds) + " m/s"
+              + (f" (yaw: held {hold} cycles, per cycle after the first)" if hold > 1 else ""))
         for name, a in t.angles.items():
             print(f"    {name:11s} " + "  ".join(f"{x:6.1f}" for x in np.degrees(a[:, -1])))
         rows[mode] = t.to_dict()
