@@ -8,7 +8,8 @@ every candidate is a wingbeat it could draw).
         [--cruise] [--json out.json]
 
 ``--cruise`` searches around the cruise dove instead (its capture's reference and spread, tail
-bias 26 deg, the bird wing's section and the induced flow: ``flapsim fly --cruise``).
+bias 26 deg, the bird wing's section and the induced flow: ``flapsim fly --cruise``);
+``--table bird_wing --induced`` flies the paper's capture under the bird wing's section.
 
 Each candidate is flown free, repeated ``--wingbeats`` times from the standard cruise start
 (level, at ``--speed``), and measured over wingbeats ``--skip``.. by
@@ -71,15 +72,18 @@ def capture_spread(preset: str = "slow") -> np.ndarray:
     return capture_wingbeats(reference_capture(preset=preset), reference_wingbeat(preset)).dP.std(0)
 
 
-def dove_setup(cruise: bool) -> tuple[DoveFlight, np.ndarray, np.ndarray]:
-    """The flight searched (the paper's dove, or the cruise dove), its P0 with the tail bias
-    and the capture's spread."""
+def dove_setup(cruise: bool, table: str | None = None, induced: bool = False,
+               tail_bias_deg: float | None = None) -> tuple[DoveFlight, np.ndarray, np.ndarray]:
+    """The flight searched (the paper's dove, under ``table`` with or without the induced
+    flow, or the cruise dove), its P0 with the tail bias and the capture's spread."""
     if cruise:
         fl = DoveFlight(Dove.load(induced=True), reference_wingbeat("cruise"), table=CRUISE.table,
                         use_rollout=False)
         return fl, with_tail_bias(p0(), CRUISE.tail_bias_deg), capture_spread("cruise")
-    fl = DoveFlight(Dove.load(), use_rollout=False)
-    return fl, with_tail_bias(p0(), FlightConfig.tail_bias_deg), capture_spread()
+    fl = DoveFlight(Dove.load(induced=induced), table=table or FlightConfig.table,
+                    use_rollout=False)
+    bias = FlightConfig.tail_bias_deg if tail_bias_deg is None else tail_bias_deg
+    return fl, with_tail_bias(p0(), bias), capture_spread()
 
 
 def expand(x: np.ndarray, base: np.ndarray, spread: np.ndarray) -> np.ndarray:
@@ -125,10 +129,12 @@ _WORKER: dict = {}
 
 
 def _evaluate(x: np.ndarray, objective: str, wingbeats: int, skip: int,
-              speed: float, min_speed: float, max_pitch: float, cruise: bool = False) -> float:
+              speed: float, min_speed: float, max_pitch: float, cruise: bool = False,
+              table: str | None = None, induced: bool = False,
+              tail_bias_deg: float | None = None) -> float:
     """One candidate (in a worker process: its flight built once)."""
     if "fl" not in _WORKER:
-        _WORKER["fl"], _WORKER["base"], _WORKER["spread"] = dove_setup(cruise)
+        _WORKER["fl"], _WORKER["base"], _WORKER["spread"] = dove_setup(cruise, table, induced, tail_bias_deg)
     p = expand(x, _WORKER["base"], _WORKER["spread"])
     return score(wingbeat_balance(_WORKER["fl"], p, wingbeats, skip, speed), objective, skip,
                  {"min_speed": min_speed, "max_pitch": max_pitch})
@@ -152,6 +158,11 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--cruise", action="store_true",
                     help="around the cruise dove (its capture, bird-wing section, induced flow)")
+    ap.add_argument("--table", default=None,
+                    help="the paper's dove under this coefficient table (default: its own)")
+    ap.add_argument("--induced", action="store_true", help="the paper's dove with the induced flow")
+    ap.add_argument("--tail-bias-deg", type=float, default=None,
+                    help="the paper's dove's tail bias (default 17, the paper's)")
     ap.add_argument("--json", default=None)
     return ap
 
@@ -161,7 +172,11 @@ def main(argv: list[str] | None = None) -> None:
     a = ap.parse_args(argv)
     if not 1 <= a.skip < a.wingbeats:
         ap.error("need 1 <= --skip < --wingbeats")
-    args = (a.objective, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch, a.cruise)
+    if a.cruise and (a.table or a.induced or a.tail_bias_deg is not None):
+        ap.error("--cruise has its own table, induced flow and tail bias: leave out "
+                 "--table/--induced/--tail-bias-deg")
+    args = (a.objective, a.wingbeats, a.skip, a.speed, a.min_speed, a.max_pitch, a.cruise,
+            a.table, a.induced, a.tail_bias_deg)
     t = time.perf_counter()
     gen = [0]
 
@@ -177,7 +192,7 @@ def main(argv: list[str] | None = None) -> None:
                                  workers=a.workers, updating="deferred", polish=False,
                                  init="sobol", x0=np.zeros(n_free), callback=report)
     wall = time.perf_counter() - t
-    fl, base, spread = dove_setup(a.cruise)
+    fl, base, spread = dove_setup(a.cruise, a.table, a.induced, a.tail_bias_deg)
     best_p = expand(res.x, base, spread)
     rows = {"P0": wingbeat_balance(fl, base, a.wingbeats, a.skip, a.speed),
             "best": wingbeat_balance(fl, best_p, a.wingbeats, a.skip, a.speed)}
@@ -192,7 +207,8 @@ def main(argv: list[str] | None = None) -> None:
     if a.json:
         write_json(a.json, {"objective": a.objective, "bound_spreads": a.bound, "speed": a.speed,
                             "wingbeats": a.wingbeats, "skip": a.skip, "min_speed": a.min_speed,
-                            "max_pitch": a.max_pitch, "cruise": a.cruise, "score": float(res.fun),
+                            "max_pitch": a.max_pitch, "cruise": a.cruise, "table": a.table,
+                            "induced": a.induced, "tail_bias_deg": a.tail_bias_deg, "score": float(res.fun),
                             "x_spreads": res.x.tolist(), "wingbeat": best_p.tolist(),
                             "candidates": int(res.nfev), "wall_s": wall, "flights": rows,
                             "environment": versions()})
