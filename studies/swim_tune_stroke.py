@@ -83,15 +83,18 @@ _BREAST = (
     + [("key", "neck.flex", i, 20.0) for i in range(1, 4)]
     + [("key", "thoracic.flex", 1, 15.0)]
 )
-# treading: every key of the arms' scull and the legs' kick
+# treading: the arms' scull, and the legs' eggbeater kick as a whole (where the thighs sit,
+# how far the shanks circle, how the soles are set): its keys trace one circle, which
+# moving single keys would break
 _TREAD = (
     [("all", "shoulder_l.flex", 0, 30.0), ("all", "shoulder_l.abd", 0, 30.0)]
     + [("key", "shoulder_l.rot", i, 40.0) for i in range(2)]
     + [("all", "elbow_l.flex", 0, 30.0)]
-    + [("key", "elbow_l.pronation", i, 35.0) for i in range(6)]
-    + [("key", f"hip_l.{d}", i, 30.0) for d in ("flex", "abd", "rot") for i in range(3)]
-    + [("key", "knee_l.flex", i, 35.0) for i in range(3)]
-    + [("key", "ankle_l.plantar", i, 25.0) for i in range(4)]
+    + [("all", "elbow_l.pronation", 0, 35.0)]
+    + [("all", "hip_l.flex", 0, 25.0), ("all", "hip_l.abd", 0, 25.0),
+       ("amp", "hip_l.rot", 0, 0.6), ("all", "knee_l.flex", 0, 25.0),
+       ("amp", "knee_l.flex", 0, 0.6), ("all", "ankle_l.plantar", 0, 25.0),
+       ("all", "ankle_l.inversion", 0, 20.0)]
     + [("all", "neck.flex", 0, 20.0), ("all", "lumbar.flex", 0, 20.0),
        ("period", "", 0, 0.3)]
 )
