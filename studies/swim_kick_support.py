@@ -13,7 +13,8 @@ centre of mass held near zero.
     python studies/swim_kick_support.py --search --target 15 --json k.json  # an eggbeater kick
 
 Kinematic, not dynamic: the trunk does not move and the water is still, so it says what the
-limbs' motion can give, not whether the swimmer balances on it (``flapsim swim --stroke FILE``).
+limbs' motion can give, not what a free swimmer gets from it (``flapsim swim --stroke FILE``:
+free in the water the body moves with a kick, and the feet lose much of their speed).
 """
 
 from __future__ import annotations
