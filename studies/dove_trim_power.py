@@ -11,6 +11,11 @@ the feathers' dissipation at 30-60 deg angle of attack, cost of transport).
 
     python studies/dove_trim_power.py --table bird_wing --induced --speed 8.5 --json trim.json
     python studies/dove_trim_power.py --cruise --speed 7 --json trim7.json   # the cruise dove
+    python studies/dove_trim_power.py --induced --tail-bias-deg 35 --speed 5 --climb-target 2.5 \
+        --bound flap_scale=0.5:2 --bound timewarp=0.7:1.8   # the least power of a steady climb
+
+``--climb-target V`` asks a steady climb of V m/s instead of level flight (the climb's cost
+counts from V).
 """
 
 from __future__ import annotations
@@ -58,6 +63,10 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--climb-weight", type=float, default=30.0,
                     help="W added per m/s of climb or sink (default 30)")
+    ap.add_argument("--climb-target", type=float, default=0.0,
+                    help="the steady climb asked, m/s (default 0: level)")
+    ap.add_argument("--tail-bias-deg", type=float, default=None,
+                    help="the paper's dove's tail bias (default 17; --cruise: its own 26)")
     ap.add_argument("--trim-weight", type=float, default=6.0,
                     help="W added per m/s^2 of speed change (default 6: a wingbeat slowing "
                          "0.1 m/s^2 may save 0.6 W; 20 holds the speed)")
@@ -109,7 +118,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     bounds = knob_bounds(args.bound)
     if args.cruise:
         args.table, args.induced = CRUISE.table, True
-    bias = CRUISE.tail_bias_deg if args.cruise else FlightConfig.tail_bias_deg
+    if args.cruise and args.tail_bias_deg is not None:
+        raise SystemExit("--cruise has its own tail bias: leave out --tail-bias-deg")
+    bias = CRUISE.tail_bias_deg if args.cruise else (
+        FlightConfig.tail_bias_deg if args.tail_bias_deg is None else args.tail_bias_deg)
     ref = reference_wingbeat("cruise" if args.cruise else "slow")
     dove = Dove.load(induced=args.induced)
     fl = DoveFlight(dove, ref, table=args.table, use_rollout=False)
@@ -121,7 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         b = wingbeat_balance(fl, wingbeat(x, lo, hi, fl.ref, bias), args.wingbeats, args.skip, args.speed)
         if b is None:
             return 1e3
-        return (b["power_W"] + args.climb_weight * abs(b["climb_m_s"])
+        return (b["power_W"] + args.climb_weight * abs(b["climb_m_s"] - args.climb_target)
                 + args.trim_weight * abs(b["accel_m_s2"]))
 
     t0 = time.perf_counter()
@@ -136,6 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     steep = (bins["30-45"] + bins["45-60"]) / max(budget["drag_feathers_W"], 1e-12)
     out = {"table": args.table, "induced": args.induced, "cruise": args.cruise,
            "speed_m_s": args.speed, "climb_weight": args.climb_weight,
+           "climb_target_m_s": args.climb_target, "tail_bias_deg": bias,
            "trim_weight": args.trim_weight,
            "bounds": {k[0]: list(b) for k, b in zip(KNOBS, bounds, strict=True)},
            "knobs": {k[0]: float(v) for k, v in zip(KNOBS, res.x, strict=True)},
