@@ -39,6 +39,7 @@ import json
 import logging
 import math
 import os
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -630,8 +631,16 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
                       {s: a[order] for s, a in angles.items()}, offsets[order], level[order], prov)
 
 
-def _job_problem(r: object, jobs: list) -> str | None:
-    """Why ``r`` is not the result of one of ``jobs``, or None."""
+def _finite_numbers(v: object) -> bool:
+    """Whether ``v`` is a non-empty list of finite numbers (not booleans)."""
+    return isinstance(v, list) and bool(v) and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
+
+
+def _job_problem(r: object, jobs: list, cycles: Callable[[str | None], int]) -> str | None:
+    """Why ``r`` is not the result of one of ``jobs``, or None; ``cycles(sequence)``: the
+    cycles its job swims (:meth:`CalibrationConfig.cycles_of`: a held job records each
+    cycle's end)."""
     if not isinstance(r, dict):
         return "a result is not a JSON object"
     i = r.get("i")
@@ -641,21 +650,18 @@ def _job_problem(r: object, jobs: list) -> str | None:
             json.loads(json.dumps(list(jobs[i]))):
         return f"result {i} is not of cycle {i}'s job"
     for key in ("start", "end", "mean"):
-        v = r.get(key)
-        if not (isinstance(v, list) and v and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-                for x in v)):
+        if not _finite_numbers(r.get(key)):
             return f"result {i} has no finite {key!r} numbers"
-    ends = r.get("ends", [[0.0]])  # a held cycle's attitude at each cycle's end
-    if not (isinstance(ends, list) and ends and all(
-            isinstance(e, list) and e and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-                for x in e) for e in ends)):
-        return f"result {i} has no finite 'ends' numbers"
+    n = cycles(jobs[i][2])
+    if n > 1:
+        ends = r.get("ends")
+        if not (isinstance(ends, list) and len(ends) == n and all(map(_finite_numbers, ends))):
+            return f"result {i} has no finite 'ends' numbers for its {n} cycles"
     return None
 
 
-def _read_journal(path: Path, header: dict, jobs: list) -> dict[int, dict]:
+def _read_journal(path: Path, header: dict, jobs: list,
+                  cycles: Callable[[str | None], int] = lambda seq: 1) -> dict[int, dict]:
     """Finished jobs from a journal started with the same ``header``; a journal of another
     run is an error. A line that holds no finished jobs (torn by an interruption, or edited)
     is skipped with a warning naming the file and line: its jobs are run again."""
@@ -681,7 +687,7 @@ def _read_journal(path: Path, header: dict, jobs: list) -> dict[int, dict]:
             results = rec.get("results") if isinstance(rec, dict) else None
             problem = None if isinstance(results, list) else "no list of results"
             for r in results if problem is None else ():
-                problem = _job_problem(r, jobs)
+                problem = _job_problem(r, jobs, cycles)
                 if problem:
                     break
         if problem is not None:
@@ -724,7 +730,7 @@ def calibrate(stroke: str, out: str | os.PathLike | None = None, workers: int = 
     journal = out_p.with_name(out_p.name + ".partial.jsonl")
 
     ident = {"flapsim_version": __version__, "config": asdict(config)}
-    done = _read_journal(journal, ident, jobs) if journal.exists() else {}
+    done = _read_journal(journal, ident, jobs, config.cycles_of) if journal.exists() else {}
     todo = [i for i in range(len(jobs)) if i not in done]
     # contiguous runs of todo indices, chunk_size at most
     chunks = []

@@ -50,3 +50,20 @@ def test_a_header_that_is_no_journal_header_is_one_line(tmp_path, header):
     path = _journal(tmp_path, header=header)
     with pytest.raises(DataFileError, match="not a calibration journal"):
         _read_journal(path, HEADER, JOBS)
+
+
+@pytest.mark.parametrize("ends, kept", [
+    (None, False),                      # a held job's line without its cycles' ends
+    ([[0.2, 0.3]], False),              # one end where the job swam three cycles
+    ([[0.2, 0.3], [0.4, "x"], [0.6, 0.7]], False),
+    ([[0.2, 0.3], [0.4, 0.5], [0.6, 0.7]], True),
+])
+def test_a_held_jobs_line_needs_the_end_of_each_cycle_it_swam(tmp_path, caplog, ends, kept):
+    # the held calibration's turn is read off every cycle's end: a line that lacks them
+    # would stop the table's assembly with a KeyError, so its cycles are run again instead
+    held = _res(1) if ends is None else _res(1, ends=ends)
+    path = _journal(tmp_path, json.dumps({"results": [_res(0), held]}))
+    with caplog.at_level(logging.WARNING):
+        done = _read_journal(path, HEADER, JOBS, lambda seq: 1 if seq is None else 3)
+    assert done == ({0: _res(0), 1: held} if kept else {})
+    assert ("'ends'" in caplog.text) is not kept
