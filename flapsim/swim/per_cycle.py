@@ -618,6 +618,10 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
     sp = speeds[order]
     for i in range(1, len(sp)):
         sp[i] = max(sp[i], sp[i - 1] + 1e-3)
+    # the table records which stroke it was made from by the file's place in the package
+    # (bundled strokes) so that a table reads the same on every machine; the hash identifies it
+    header = {**header, "config": {**header.get("config", {}),
+                                   "stroke": portable_stroke_name(config.stroke)}}
     prov = {**header, "stroke_sha256": config.stroke_sha256,
             "swimmer_params": asdict(SwimmerParams(**config.params)),
             "method": "one cycle from the state at each snapshot cycle start of straight "
@@ -629,6 +633,16 @@ def _assemble(config: CalibrationConfig, results: dict[int, dict], header: dict,
             "snapshot_cycles": list(config.snapshot_cycles)}
     return CycleTable(load_stroke(config.stroke).name, sp, np.asarray(config.weights, float),
                       {s: a[order] for s, a in angles.items()}, offsets[order], level[order], prov)
+
+
+def portable_stroke_name(path: str | os.PathLike) -> str:
+    """A bundled stroke file's path inside the package (``flapsim/swim/data/strokes/...``,
+    the same on every machine); any other file's resolved path."""
+    p = Path(path).resolve()
+    try:
+        return (Path("flapsim/swim/data/strokes") / p.relative_to(STROKE_DIR)).as_posix()
+    except ValueError:
+        return str(p)
 
 
 def _finite_numbers(v: object) -> bool:

@@ -114,6 +114,8 @@ def test_calibration_measures_what_a_direct_swim_does_and_resumes(tmp_path):
     prov = json.loads(path.read_text())["provenance"]
     assert prov["stroke_sha256"] == cyc.stroke_hash(load_stroke("crawl"))
     assert prov["flapsim_version"] and prov["config"]["weights"] == [1.0]
+    # a bundled stroke is named by its place in the package, not this machine's checkout
+    assert prov["config"]["stroke"] == "flapsim/swim/data/strokes/crawl.toml"
     # resumable: a journal holding some finished jobs is continued, not redone
     config = cyc.CalibrationConfig(str(stroke_path("crawl").resolve()),
                                    cyc.stroke_hash(load_stroke("crawl")), (0,), (1.0,))
