@@ -789,6 +789,7 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
             if not same_provenance(prov.get(key), prov0.get(key)):
                 raise InputError(f"cannot merge {p} with {p0}: their provenance differs in {key!r} "
                                  "(another reference wingbeat or timestep)")
+    config = _merged_config(paths, dbs)
     arrays = {name: np.concatenate([db.arrays[name] for db in dbs]) for name in names}
     arrays["part"] = np.concatenate([np.full(db.n, i, np.int64) for i, db in enumerate(dbs)])
     arrays["source_index"] = np.concatenate([db.index.astype(np.int64) for db in dbs])
@@ -799,7 +800,7 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
     parts = [{"path": str(Path(p).resolve()), "sha256": file_sha256(p), "samples": db.n,
               "header": db.header} for p, db in zip(paths, dbs, strict=True)]
     header = {"kind": "merged", "model_hash": first.header.get("model_hash"), "seed": None,
-              "provenance": {**{k: prov0[k] for k in same if k in prov0}, "parts": parts},
+              "config": config, "provenance": {**{k: prov0[k] for k in same if k in prov0}, "parts": parts},
               "examined": int(sum(int(db.header.get("examined", db.n)) for db in dbs))}
     n = int(arrays["part"].shape[0])
     try:
@@ -808,6 +809,29 @@ def merge_databases(paths: list[str | os.PathLike], out: str | os.PathLike,
         raise InputError(f"{out} appeared while merging; it is left as it is: choose another "
                          "--out") from None
     return load_database(out)
+
+
+#: Sampling settings a merged database takes from its first source even where the others
+#: differ: where its flights start (the cruise speed and trunk pitch the first source's
+#: pre-states were drawn around); a merge built on a database keeps that database's start.
+MERGE_START_KEYS = ("cruise_speed", "pitch_centre_deg")
+
+
+def _merged_config(paths: list, dbs: list[Database]) -> dict:
+    """The sampling configuration of a merge (what a flight reads from a database: its dove's
+    induced flow, its feather table, its capture, its start): every entry its sources share,
+    and :data:`MERGE_START_KEYS` from the first. Sources sampled under other feather tables
+    are refused: their wingbeats are right only for the forces they were flown with."""
+    configs = [db.header.get("config") or {} for db in dbs]
+    tables = {c.get("table") for c in configs}
+    if len(tables) > 1:
+        raise InputError(f"cannot merge {paths[1]} with {paths[0]}: sampled under other feather "
+                         f"tables ({', '.join(sorted(str(t) for t in tables))})")
+    first = configs[0]
+    out = {k: v for k, v in first.items()
+           if all(k in c and same_provenance(c[k], v) for c in configs[1:])}
+    out.update({k: first[k] for k in MERGE_START_KEYS if k in first})
+    return out
 
 
 #: Header entries that identify the run a database's samples come from: two databases that

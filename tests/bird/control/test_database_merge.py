@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from flapsim.bird.control.controller import database_speed, database_table
 from flapsim.bird.control.database import load_database, merge_databases, save_database
 from flapsim.cli.main import main
 from flapsim.core.errors import DataFileError, InputError
@@ -363,3 +364,33 @@ def test_a_reference_wingbeat_with_what_it_replaces_is_one_line(capsys, tmp_path
     err = out.err.strip()
     assert code == 2 and fragment in err and "\n" not in err, err
     assert not (tmp_path / "x.db").exists()
+
+
+def _with_config(path, config):
+    db = load_database(path)
+    header = {**db.header, "config": config}
+    path.unlink()
+    save_database(path, header, db.index, db.arrays, db.rejected)
+
+
+def test_a_merge_keeps_the_sampling_settings_its_sources_share(tmp_path):
+    """A merge of two cruise-dove databases was flown as the default dove (no induced flow,
+    the robofly table, 7 m/s, no regulator): its header held no sampling configuration, which
+    is where a flight reads its dove, table, capture and start from."""
+    shared = {"table": "bird_wing", "induced": True, "capture_preset": "cruise"}
+    _db(tmp_path / "a.db", 4, 1)
+    _db(tmp_path / "b.db", 4, 2)
+    _with_config(tmp_path / "a.db", {**shared, "seed": 1, "cruise_speed": 8.5, "roll_deg": 10.0})
+    _with_config(tmp_path / "b.db", {**shared, "seed": 2, "cruise_speed": 6.0, "roll_deg": 30.0})
+    cfg = merge_databases([tmp_path / "a.db", tmp_path / "b.db"], tmp_path / "m.db").header["config"]
+    # shared entries kept, differing ones dropped, the start (speed) the first source's
+    assert cfg == {**shared, "cruise_speed": 8.5}
+    assert database_table(tmp_path / "m.db") == "bird_wing"
+    assert database_speed(tmp_path / "m.db") == 8.5
+    # samples flown under another feather table are refused, nothing written
+    _db(tmp_path / "c.db", 4, 3)
+    _with_config(tmp_path / "c.db", {**shared, "table": "dickinson1999_profile", "seed": 3})
+    with pytest.raises(InputError) as e:
+        merge_databases([tmp_path / "a.db", tmp_path / "c.db"], tmp_path / "m2.db")
+    assert "feather tables" in str(e.value) and "\n" not in str(e.value)
+    assert not (tmp_path / "m2.db").exists()
