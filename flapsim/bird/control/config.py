@@ -76,7 +76,11 @@ DEFAULT_REFINE_GOAL = {"rigid": "full", "modal": "full"}
 #: :attr:`ControllerConfig.lookahead`'s modes.
 LOOKAHEAD_MODES = ("auto", "on", "off")
 #: :attr:`ControllerConfig.lateral`'s modes.
-LATERAL_MODES = ("auto", "on", "off")
+LATERAL_MODES = ("auto", "on", "off", "banked")
+#: The banked lateral regulator's integral scale, deg: the roll error summed over the
+#: wingbeats that costs as much as 10 deg of roll now (docs/design/flight.md, "A regulator for
+#: a banking dove").
+DEFAULT_LATERAL_INTEGRAL_DEG = 40.0
 #: The lateral regulator's input cost: the cruise dove completes 8 of the 22 flight scenarios
 #: with it, 4 without (docs/design/flight.md, "The lateral wingbeat map, and a once-a-beat
 #: regulator on it").
@@ -128,9 +132,17 @@ class ControllerConfig:
     """The once-a-beat lateral regulator added to each wingbeat's reference (an LQR on the
     lateral wingbeat map measured at load, flapsim.bird.control.lateral): "on", "off" (the
     paper's) or "auto": on for a database sampled around the cruise capture (train --cruise),
-    whose dove spirals without it, off otherwise (docs/flight.md)."""
+    whose dove spirals without it, off otherwise; "banked": the regulator for a banking dove
+    (:attr:`lateral_integral_deg`; the cruise dove only, whose turn trims are bundled;
+    docs/flight.md)."""
     lateral_r: float = DEFAULT_LATERAL_R
     """The lateral regulator's input cost, > 0 (smaller: stronger; docs/flight.md)."""
+    lateral_integral_deg: float = DEFAULT_LATERAL_INTEGRAL_DEG
+    """``lateral = "banked"``: the regulator's gains are designed on the lateral maps around
+    the dove's turn trims and scheduled on its bank, it sums the roll error over the wingbeats
+    (this, deg, costs as much as 10 deg of roll now; > 0), and the learned regression's answer
+    is made left-right symmetric: the regulator flies the bank, the regression the rest
+    (docs/flight.md)."""
     longitudinal: str = "off"
     """The once-a-beat longitudinal regulator beside it (an LQR on the longitudinal wingbeat
     map, flapsim.bird.control.longitudinal: pitch, forward and normal velocity, pitch rate):
@@ -175,6 +187,9 @@ class ControllerConfig:
         if isinstance(lr, bool) or not (math.isfinite(lr) and lr > 0.0):
             raise InputError(f"controller lateral_r must be an input cost > 0 (lateral = \"off\" "
                              f"turns the regulator off), got {lr!r}")
+        zi = self.lateral_integral_deg
+        if isinstance(zi, bool) or not (math.isfinite(zi) and zi > 0.0):
+            raise InputError(f"controller lateral_integral_deg must be > 0 deg, got {zi!r}")
         if self.longitudinal not in LONGITUDINAL_MODES:
             raise InputError(f"controller longitudinal must be one of "
                              f"{', '.join(LONGITUDINAL_MODES)}, got {self.longitudinal!r}")

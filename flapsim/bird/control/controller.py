@@ -26,7 +26,16 @@ from flapsim.bird.body.model import Dove
 from flapsim.bird.control import longitudinal as longi
 from flapsim.bird.control.config import LOOKAHEAD_MODES, MAX_REFINE, REFINE_GOALS, ControllerConfig
 from flapsim.bird.control.database import load_database, read_header
-from flapsim.bird.control.lateral import N_STATE, TRUNK, LateralRegulator, build_regulator, lateral_state
+from flapsim.bird.control.lateral import (
+    N_STATE,
+    TRUNK,
+    BankedRegulator,
+    LateralRegulator,
+    build_banked_regulator,
+    build_regulator,
+    lateral_state,
+    turn_trims_for,
+)
 from flapsim.bird.control.lookahead import ReferenceLookahead
 from flapsim.bird.control.prediction import COARSE_RATE_HZ, PREDICT_MODES, CoarsePredictor, S0Predictor
 from flapsim.bird.control.regression import (
@@ -156,11 +165,13 @@ class WingbeatController:
     answer usually lands that close, and a correction costs a whole wingbeat's simulation."""
     config: ControllerConfig | None = None
     """The configuration :func:`load_controller` built it from (provenance), None otherwise."""
-    lateral: LateralRegulator | None = None
+    lateral: LateralRegulator | BankedRegulator | None = None
     """None (default, the paper's): the reference wingbeat is flown as it is. A
     :class:`~flapsim.bird.control.lateral.LateralRegulator`: its once-a-beat change for the
     lateral state at the wingbeat's start, against the last wingbeat's target, is added to the
-    reference before S0 is simulated, and the regression's answer is added to that."""
+    reference before S0 is simulated, and the regression's answer is added to that. A
+    :class:`~flapsim.bird.control.lateral.BankedRegulator` likewise, and then the regression's
+    answer is made left-right symmetric (the regulator flies the bank)."""
     longitudinal: longi.LongitudinalRegulator | None = None
     """None (default, the paper's), or a
     :class:`~flapsim.bird.control.longitudinal.LongitudinalRegulator` whose change is added to
@@ -201,6 +212,8 @@ class WingbeatController:
         self._last = None
         self._lateral_dP = self._lateral_target = None
         self._long_dP = self._long_target = None
+        if isinstance(self.lateral, BankedRegulator):
+            self.lateral.reset()
         if self.predictor is not None:
             self.predictor.reset()
         if self.lookahead is not None:
@@ -294,6 +307,10 @@ class WingbeatController:
         """The wingbeat for request ``dS`` (within the joint ranges) and whether it was pulled
         back into them."""
         dP = self.regressor.predict(dS, S_now)
+        if isinstance(self.lateral, BankedRegulator):
+            # the regulator flies the bank: the regression's answer keeps its symmetric part
+            # (what it asks of both wings alike: lift, thrust, pitch)
+            dP = 0.5 * (dP + mirror_samples(np.zeros((1, 8)), dP[None], self.P0)[1][1])
         if base is not self.P0:
             # what is carried plus the answer, within the database's own wingbeats
             dP = np.clip(base - self.P0 + dP, self.regressor.dP_lo, self.regressor.dP_hi)
@@ -666,7 +683,15 @@ def load_controller(flight: DoveFlight, db_path=None, method: str = "lwlr", k: i
         # both maps are measured from the start the database's samples were drawn around
         cfg = FlightConfig(table=flight.table, speed=database_speed(path, flight.dove.feathers),
                            pitch_deg=database_pitch(path, flight.dove.feathers))
-        if "lateral" in on:
+        if "lateral" in on and config.lateral == "banked":
+            trims = turn_trims_for(P0)
+            if trims is None:
+                raise InputError("lateral = \"banked\" needs turn trims searched around this "
+                                 "database's reference wingbeat (bundled for the cruise dove's: "
+                                 "train --cruise); make them with python studies/dove_turn_trim.py")
+            ctl.lateral = build_banked_regulator(flight, P0, cfg, float(config.lateral_r), trims,
+                                                 float(np.radians(config.lateral_integral_deg)))
+        elif "lateral" in on:
             ctl.lateral = build_regulator(flight, P0, cfg, float(config.lateral_r))
         if "longitudinal" in on:
             ctl.longitudinal = longi.build_regulator(flight, P0, cfg, float(config.longitudinal_r))
@@ -699,7 +724,7 @@ def lateral_on(config: ControllerConfig, header: dict) -> bool:
     (its dove's spiral mode grows 1.34x a wingbeat and the database's wingbeats do not hold it;
     the paper's and the robofly dove's fly as the paper's, without one)."""
     if config.lateral != "auto":
-        return config.lateral == "on"
+        return config.lateral in ("on", "banked")
     return _cruise_database(header)
 
 

@@ -20,13 +20,21 @@ it", gives the numbers.
 
 from __future__ import annotations
 
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
 import mujoco
 import numpy as np
+import scipy.linalg
 
 from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.control import wingbeat_map
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig
+from flapsim.core.errors import DataFileError, InputError
+from flapsim.core.io import read_regular
 
 #: The trunk's lateral components in the reduced state: roll, v_y, omega_x, omega_z.
 TRUNK = (1, 3, 5, 7)
@@ -130,3 +138,150 @@ def build_regulator(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r: float)
     A, B = linearise(tw, P0, cycle.snapshot(tw))
     K = wingbeat_map.gain(A, B, r, STATE_SCALE, "lateral")
     return LateralRegulator(K, input_directions(len(P0))[1], A, B)
+
+
+# -- the banked regulator: gains scheduled on the bank, integral action on the roll error ----
+
+#: Where a bundled dove's turn trims live: ``<stem>_turn_trims.json`` beside the databases
+#: (``studies/dove_turn_trim.py --json`` writes them).
+TRIMS_DIR = Path(__file__).resolve().parent / "data"
+#: Wingbeats of its trim flown from the banked start before the map is measured there.
+BANK_SETTLE = 2
+
+
+def bank_state(fl: DoveFlight, snap: cycle.Snapshot, bank_deg: float) -> cycle.Snapshot:
+    """``snap`` rolled by ``bank_deg`` about the trunk's forward axis (+: right wing down, as
+    the reduced state's roll) and turning at the coordinated rate g tan(phi) / V about the
+    vertical (a right bank turns right), its joints and velocity as they were."""
+    m, d = fl.model, fl.data
+    cycle.restore(fl, snap)
+    phi = np.radians(bank_deg)
+    q = np.zeros(4)
+    mujoco.mju_mulQuat(q, d.qpos[3:7].copy(), np.array([np.cos(phi / 2), np.sin(phi / 2), 0, 0]))
+    d.qpos[3:7] = q
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, q)
+    g = float(np.linalg.norm(m.opt.gravity))
+    rate = -g * np.tan(phi) / max(float(np.linalg.norm(d.qvel[0:3])), 1e-9)
+    d.qvel[3:6] = R.reshape(3, 3).T @ np.array([0.0, 0.0, rate])  # the body frame's
+    mujoco.mj_forward(m, d)
+    return cycle.snapshot(fl)
+
+
+@dataclass(frozen=True)
+class TurnTrims:
+    """Wingbeats that hold a dove in steady banked turns (right banks; the left ones are their
+    mirror images), searched by ``studies/dove_turn_trim.py`` around a reference wingbeat."""
+
+    banks_deg: np.ndarray
+    """(n,) banks, deg, increasing, > 0."""
+    wingbeats: np.ndarray
+    """(n, 29) the wingbeat holding each."""
+    P0: np.ndarray
+    """(29,) the reference wingbeat they were searched around (biases included)."""
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> TurnTrims:
+        """Read a trims file (one-line errors for a missing, foreign or malformed one)."""
+        try:
+            raw = json.loads(read_regular(path, "turn-trims file").decode())
+            rows = sorted(raw["results"], key=lambda r: float(r["bank_deg"]))
+            banks = np.array([float(r["bank_deg"]) for r in rows])
+            wb = np.array([np.asarray(r["wingbeat"], float) for r in rows])
+            p0_ = np.asarray(raw["P0"], float)
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            raise DataFileError(f"{path}: not a turn-trims file ({e}); make one with python "
+                                "studies/dove_turn_trim.py --json FILE") from None
+        if (not len(banks) or wb.shape != (len(banks), p0_.size) or not np.all(banks > 0)
+                or np.any(np.diff(banks) <= 0) or not np.all(np.isfinite(wb))
+                or not np.all(np.isfinite(p0_))):
+            raise DataFileError(f"{path}: a turn-trims file holds distinct banks > 0 deg, each "
+                                "with a finite wingbeat of the reference's size")
+        return cls(banks, wb, p0_)
+
+
+def turn_trims_for(P0: np.ndarray) -> TurnTrims | None:
+    """The bundled turn trims searched around ``P0`` (None where none are)."""
+    for path in sorted(TRIMS_DIR.glob("*_turn_trims.json")):
+        t = TurnTrims.load(path)
+        if t.P0.shape == np.shape(P0) and np.allclose(t.P0, P0, rtol=0.0, atol=1e-9):
+            return t
+    return None
+
+
+def integral_lqr(A: np.ndarray, B: np.ndarray, r: float, z_scale: float) -> np.ndarray:
+    """K (12, N_STATE + 1) of the LQR on the map augmented by z, the roll error summed over the
+    wingbeats (z' = z + roll), u = -K (x, z): z costs 1 / z_scale^2 beside the trunk's states
+    (:func:`lqr`'s), so that a steady roll error, which a steady input needs under ``-K x``
+    alone, is worked off."""
+    n = len(A)
+    Aa = np.zeros((n + 1, n + 1))
+    Aa[:n, :n], Aa[n, 0], Aa[n, n] = A, 1.0, 1.0
+    Ba = np.vstack([B, np.zeros((1, B.shape[1]))])
+    scale = np.concatenate([STATE_SCALE, np.zeros(n - len(STATE_SCALE)), [z_scale]])
+    Q = np.diag(np.where(scale > 0, 1.0 / np.where(scale > 0, scale, 1.0) ** 2, 0.0))
+    R = r * np.eye(B.shape[1])
+    X = scipy.linalg.solve_discrete_are(Aa, Ba, Q, R)
+    return np.linalg.solve(R + Ba.T @ X @ Ba, Ba.T @ X @ Aa)
+
+
+@dataclass
+class BankedRegulator:
+    """The once-a-beat lateral regulator for a dove that banks to turn: its gain is designed
+    on the lateral map measured around each of the dove's turn trims and interpolated on the
+    trunk's roll at the wingbeat's start (the level map's gain, designed for level flight,
+    loses the 30 and 45 deg turns: docs/design/flight.md), and it sums the roll error over the
+    wingbeats (integral action: a bank is held only by a steady input). dP = directions^T
+    clip(-K(roll) (x - x_target, z), +-:data:`U_MAX`)."""
+
+    banks: np.ndarray
+    """(n,) rad, increasing from 0 (level)."""
+    K: np.ndarray
+    """(n, 12, N_STATE + 1) the gain at each."""
+    directions: np.ndarray
+    A: np.ndarray
+    """The level map (as :class:`LateralRegulator`'s)."""
+    B: np.ndarray
+    z_scale: float
+    """The summed roll error [rad] that costs as much as 10 deg of roll now."""
+    z: float = 0.0
+
+    def reset(self) -> None:
+        """A new flight: nothing summed."""
+        self.z = 0.0
+
+    def gain(self, roll: float) -> np.ndarray:
+        """K at bank ``|roll|`` (rad), linear between the trims, held beyond the last."""
+        a = min(abs(float(roll)), float(self.banks[-1]))
+        i = min(int(np.searchsorted(self.banks, a, side="right")) - 1, len(self.banks) - 2)
+        w = (a - self.banks[i]) / (self.banks[i + 1] - self.banks[i])
+        return (1.0 - w) * self.K[i] + w * self.K[i + 1]
+
+    def offset(self, x: np.ndarray, x_target: np.ndarray) -> np.ndarray:
+        """The wingbeat-parameter change for state ``x`` against ``x_target``; sums this
+        wingbeat's start error into z (held within 3 z scales: no wind-up)."""
+        u = np.clip(-self.gain(x[0]) @ np.append(x - x_target, self.z), -U_MAX, U_MAX)
+        self.z = float(np.clip(self.z + (x[0] - x_target[0]), -3 * self.z_scale, 3 * self.z_scale))
+        return u @ self.directions
+
+
+def build_banked_regulator(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r: float,
+                           trims: TurnTrims, z_scale: float) -> BankedRegulator:
+    """Measure the lateral map in level cruise (as :func:`build_regulator`) and around each
+    turn trim (its wingbeat flown :data:`BANK_SETTLE` wingbeats from the level state rolled
+    into its bank), on a twin of ``fl``, and design each gain with input cost ``r`` and
+    integral scale ``z_scale`` (rad)."""
+    if not (np.isfinite(z_scale) and z_scale > 0):
+        raise InputError(f"the banked regulator's integral scale must be > 0, got {z_scale!r}")
+    tw = wingbeat_map.settled_twin(fl, P0, cfg, SETTLE, "lateral", r)
+    level = cycle.snapshot(tw)
+    A0, B0 = linearise(tw, P0, level)
+    gains = [integral_lqr(A0, B0, r, z_scale)]
+    for bank, P in zip(trims.banks_deg, trims.wingbeats, strict=True):
+        cycle.restore(tw, bank_state(tw, level, float(bank)))
+        for _ in range(BANK_SETTLE):
+            cycle.fly_cycle(tw, None, P, tw.ref)
+        A, B = linearise(tw, P, cycle.snapshot(tw))
+        gains.append(integral_lqr(A, B, r, z_scale))
+    return BankedRegulator(np.radians(np.concatenate([[0.0], trims.banks_deg])), np.array(gains),
+                           input_directions(len(P0))[1], A0, B0, float(z_scale))
