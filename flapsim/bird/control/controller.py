@@ -312,11 +312,10 @@ class WingbeatController:
             # (what it asks of both wings alike: lift, thrust, pitch)
             dP = 0.5 * (dP + mirror_samples(np.zeros((1, 8)), dP[None], self.P0)[1][1])
             if base is not self.P0:
-                # what is carried plus the answer within the database's own wingbeats, the
-                # regulator's change beside them (its integral asks more than they span)
-                reg = self._lateral_dP if self._lateral_dP is not None else 0.0
-                dP = reg + np.clip(base - reg - self.P0 + dP, self.regressor.dP_lo,
-                                   self.regressor.dP_hi)
+                # what is carried and the regulator's change plus the answer, unclipped: the
+                # regulator's integral and the banked gains ask more than the database spans
+                # (clipped to it, the steady crosswinds and the sinusoid were lost sooner)
+                dP = base - self.P0 + dP
         elif base is not self.P0:
             # what is carried plus the answer, within the database's own wingbeats
             dP = np.clip(base - self.P0 + dP, self.regressor.dP_lo, self.regressor.dP_hi)

@@ -229,10 +229,10 @@ def integral_lqr(A: np.ndarray, B: np.ndarray, r: float, z_scale: float) -> np.n
 class BankedRegulator:
     """The once-a-beat lateral regulator for a dove that banks to turn: its gain is designed
     on the lateral map measured around each of the dove's turn trims and interpolated on the
-    trunk's roll at the wingbeat's start (the level map's gain, designed for level flight,
-    loses the 30 and 45 deg turns: docs/design/flight.md), and it sums the roll error over the
-    wingbeats (integral action: a bank is held only by a steady input). dP = directions^T
-    clip(-K(roll) (x - x_target, z), +-:data:`U_MAX`)."""
+    trunk's roll at the wingbeat's start (the level map's gain, designed for level flight, does
+    not hold the 30 and 45 deg turns: docs/design/flight.md), and it sums the roll error over
+    the wingbeats (integral action: a bank is held only by a steady input).
+    dP = directions^T clip(-K(roll) (x - x_target, z), +-:data:`U_MAX`)."""
 
     banks: np.ndarray
     """(n,) rad, increasing from 0 (level)."""
@@ -269,11 +269,26 @@ def build_banked_regulator(fl: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r:
                            trims: TurnTrims, z_scale: float) -> BankedRegulator:
     """Measure the lateral map in level cruise (as :func:`build_regulator`) and around each
     turn trim (its wingbeat flown :data:`BANK_SETTLE` wingbeats from the level state rolled
-    into its bank), on a twin of ``fl``, and design each gain with input cost ``r`` and
-    integral scale ``z_scale`` (rad)."""
+    into its bank), and design each gain with input cost ``r`` and integral scale ``z_scale``
+    (rad). The maps are measured on ``fl``'s dove in still air with every feather, where the
+    trims were searched: rolled into a bank in a crosswind or with plucked primaries, the trims
+    are no turns, and the gains designed there lost the steady crosswinds."""
     if not (np.isfinite(z_scale) and z_scale > 0):
         raise InputError(f"the banked regulator's integral scale must be > 0, got {z_scale!r}")
-    tw = wingbeat_map.settled_twin(fl, P0, cfg, SETTLE, "lateral", r)
+    if not (np.isfinite(r) and r > 0):
+        raise InputError(f"the lateral regulator's input cost must be > 0, got {r!r}")
+    tw = DoveFlight(fl.dove, ref=fl.ref, table=fl.table)
+    try:
+        return _banked(tw, P0, cfg, r, trims, z_scale)
+    finally:
+        tw.close()
+
+
+def _banked(tw: DoveFlight, P0: np.ndarray, cfg: FlightConfig, r: float, trims: TurnTrims,
+            z_scale: float) -> BankedRegulator:
+    tw.reset(cfg, P0)
+    for _ in range(SETTLE):
+        cycle.fly_cycle(tw, None, P0, tw.ref)
     level = cycle.snapshot(tw)
     A0, B0 = linearise(tw, P0, level)
     gains = [integral_lqr(A0, B0, r, z_scale)]
