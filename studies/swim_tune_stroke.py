@@ -44,7 +44,8 @@ from flapsim.swim.strokes import parse_stroke, stroke_path
 # (kind, dof, index, half-width [deg]); kinds: "key" moves one keyframe value, "all"
 # shifts every key of a dof, "amp" scales a dof's keys about their mean and "warp" retimes
 # the arms' time under water (half-width as a fraction for both); "legs" moves one of the
-# breaststroke legs' timing marks (:data:`LEG_MARKS`, half-width in phase)
+# breaststroke legs' timing marks (:data:`LEG_MARKS`, half-width in phase) and "phase" moves
+# one key's phase (half-width in phase, kept between its neighbours' phases)
 _CRAWL = (
     [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd", "rot") for i in range(1, 6)]
     + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 6)]
@@ -95,6 +96,8 @@ _BREAST = (
     # two sides' forces cancelling)
     + [("key", "ankle_l.inversion", i, 20.0) for i in range(1, 4)]
     + [("key", "hip_l.abd", 4, 15.0), ("key", "hip_l.rot", 4, 30.0)]
+    # ... and when the legs close: the inward sweep slower, into the glide
+    + [("phase", "hip_l.abd", 4, 0.12), ("phase", "hip_l.rot", 4, 0.12)]
 )
 #: the breaststroke legs' timing marks that the "legs" parameters move, each the phase of
 #: one of the knee's keys: the recovery's start (the legs begin to bend), the kick's start
@@ -158,7 +161,7 @@ def apply_params(raw: dict, spec: list, x: np.ndarray,
             out["period_s"] = float(np.clip(out["period_s"] + width * xi, lo, hi))
     legs: dict[str, float] = {}
     for (kind, dof, idx, width), xi in zip(spec, x, strict=True):
-        if kind == "period":
+        if kind in ("period", "phase"):
             continue
         if kind == "warp":
             _warp(out, 1.0 + width * xi)
@@ -181,6 +184,12 @@ def apply_params(raw: dict, spec: list, x: np.ndarray,
             k[1] = float(np.clip(k[1], lo, hi))
     if legs:
         retime_legs(out, legs)
+    for (kind, dof, idx, width), xi in zip(spec, x, strict=True):
+        if kind == "phase":
+            keys = _dof_keys(out, dof)
+            lo = keys[idx - 1][0] + LEG_GAP / 2 if idx > 0 else 0.0
+            hi = keys[idx + 1][0] - LEG_GAP / 2 if idx + 1 < len(keys) else 1.0
+            keys[idx][0] = float(np.clip(keys[idx][0] + width * xi, lo, hi))
     return out
 
 
