@@ -43,7 +43,9 @@ from flapsim.swim.strokes import parse_stroke, stroke_path
 
 # (kind, dof, index, half-width [deg]); kinds: "key" moves one keyframe value, "all"
 # shifts every key of a dof, "amp" scales a dof's keys about their mean and "warp" retimes
-# the arms' time under water (half-width as a fraction for both)
+# the arms' time under water (half-width as a fraction for both); "legs" moves one of the
+# breaststroke legs' timing marks (:data:`LEG_MARKS`, half-width in phase) and "phase" moves
+# one key's phase (half-width in phase, kept between its neighbours' phases)
 _CRAWL = (
     [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd", "rot") for i in range(1, 6)]
     + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 6)]
@@ -72,17 +74,42 @@ _BREAST = (
     [("key", f"shoulder_l.{d}", i, 25.0) for d in ("flex", "abd") for i in range(1, 6)]
     + [("key", "elbow_l.flex", i, 25.0) for i in range(1, 5)]
     + [("key", "elbow_l.pronation", i, 30.0) for i in range(1, 4)]
-    + [("key", "hip_l.flex", i, 15.0) for i in range(2, 4)]
+    # the hips' flexion +-40 deg: the knees can drop in the recovery so that the heels
+    # stay under water and the shanks behind the thighs; the soles +-35 deg, so that they
+    # can face backwards in the kick (dorsiflexed)
+    + [("key", "hip_l.flex", i, 40.0) for i in range(2, 4)]
     + [("key", "hip_l.abd", i, 15.0) for i in range(2, 4)]
     + [("key", "hip_l.rot", i, 20.0) for i in range(2, 4)]
-    + [("key", "knee_l.flex", i, 25.0) for i in range(2, 4)]
-    + [("key", "ankle_l.plantar", i, 20.0) for i in range(2, 5)]
+    + [("key", "knee_l.flex", i, 35.0) for i in range(2, 4)]
+    + [("key", "ankle_l.plantar", i, 35.0) for i in range(2, 5)]
     + [("all", "neck.flex", 0, 15.0), ("period", "", 0, 0.3)]
     + [("key", "hip_l.flex", 4, 10.0), ("key", "knee_l.flex", 4, 10.0),
        ("key", "shoulder_l.flex", 6, 10.0)]
     + [("key", "neck.flex", i, 20.0) for i in range(1, 4)]
     + [("key", "thoracic.flex", 1, 15.0)]
+    # the legs' timing: the recovery's start and the kick's start and end (the shanks
+    # dragged forward in a short recovery, and a kick driving the feet back at 4 m/s, cost
+    # most of the box breaststroke's leg power for little thrust: studies/swim_power_budget.py)
+    + [("legs", "start", 0, 0.12), ("legs", "kick", 0, 0.12), ("legs", "end", 0, 0.10)]
+    # the soles turned out in the kick (eversion), and the inward sweep's end (the hips'
+    # adduction and rotation at the kick's close: the feet sweeping in push sideways, the
+    # two sides' forces cancelling)
+    + [("key", "ankle_l.inversion", i, 20.0) for i in range(1, 4)]
+    + [("key", "hip_l.abd", 4, 15.0), ("key", "hip_l.rot", 4, 30.0)]
+    # ... and when the legs close: the inward sweep slower, into the glide
+    + [("phase", "hip_l.abd", 4, 0.12), ("phase", "hip_l.rot", 4, 0.12)]
 )
+#: the breaststroke legs' timing marks that the "legs" parameters move, each the phase of
+#: one of the knee's keys: the recovery's start (the legs begin to bend), the kick's start
+#: (the knees most bent), its end (the legs straight). Every key of :data:`LEG_JOINTS` is
+#: retimed by the piecewise-linear map through the marks (phases 0 and 1 fixed), so the keys
+#: keep their order.
+LEG_MARKS = {"start": ("knee_l", "flex", 1), "kick": ("knee_l", "flex", 2),
+             "end": ("knee_l", "flex", 4)}
+LEG_JOINTS = ("hip_l", "knee_l", "ankle_l")
+#: the least phase between two timing marks (and between the first mark and 0, the last
+#: and 1) after a move
+LEG_GAP = 0.04
 # treading: the arms' scull, and the legs' eggbeater kick as a whole (where the thighs sit,
 # how far the shanks circle, how the soles are set): its keys trace one circle, which
 # moving single keys would break
@@ -132,11 +159,15 @@ def apply_params(raw: dict, spec: list, x: np.ndarray,
                 continue
             lo, hi = PERIODS[out.get("name", "")]
             out["period_s"] = float(np.clip(out["period_s"] + width * xi, lo, hi))
+    legs: dict[str, float] = {}
     for (kind, dof, idx, width), xi in zip(spec, x, strict=True):
-        if kind == "period":
+        if kind in ("period", "phase"):
             continue
         if kind == "warp":
             _warp(out, 1.0 + width * xi)
+            continue
+        if kind == "legs":
+            legs[dof] = legs.get(dof, 0.0) + width * float(xi)
             continue
         keys = _dof_keys(out, dof)
         lo, hi = RANGES.get(dof, (-math.inf, math.inf))
@@ -151,7 +182,48 @@ def apply_params(raw: dict, spec: list, x: np.ndarray,
                 k[1] = mean + (k[1] - mean) * (1.0 + width * xi)
         for k in keys:
             k[1] = float(np.clip(k[1], lo, hi))
+    if legs:
+        retime_legs(out, legs)
+    for (kind, dof, idx, width), xi in zip(spec, x, strict=True):
+        if kind == "phase":
+            keys = _dof_keys(out, dof)
+            lo = keys[idx - 1][0] + LEG_GAP / 2 if idx > 0 else 0.0
+            hi = keys[idx + 1][0] - LEG_GAP / 2 if idx + 1 < len(keys) else 1.0
+            keys[idx][0] = float(np.clip(keys[idx][0] + width * xi, lo, hi))
     return out
+
+
+def leg_phase_map(marks: list[float], shifts: list[float]):
+    """The piecewise-linear phase map that moves each of the increasing timing ``marks``
+    by its shift (each moved mark kept :data:`LEG_GAP` from its neighbours, the first from
+    0 and the last from 1, so that the map increases), phases 0 and 1 fixed. Returns
+    ``(map, moved marks)``."""
+    moved: list[float] = []
+    n = len(marks)
+    for i, (m, s) in enumerate(zip(marks, shifts, strict=True)):
+        lo = (moved[-1] if moved else 0.0) + LEG_GAP
+        hi = 1.0 - LEG_GAP * (n - i)
+        moved.append(float(np.clip(m + s, lo, hi)))
+    src, dst = [0.0, *marks, 1.0], [0.0, *moved, 1.0]
+    if moved == list(marks):  # no move: the phases as written (interpolation may round)
+        return float, moved
+
+    def g(ph: float) -> float:
+        return float(np.interp(ph, src, dst))
+
+    return g, moved
+
+
+def retime_legs(raw: dict, shifts: dict[str, float]) -> None:
+    """Retime the breaststroke legs' keys in place: each timing mark of :data:`LEG_MARKS`
+    moved by ``shifts[name]`` (phase), the keys between marks spread linearly."""
+    names = list(LEG_MARKS)
+    marks = [float(raw["keys"][j][d][i][0]) for j, d, i in LEG_MARKS.values()]
+    g, _ = leg_phase_map(marks, [shifts.get(n, 0.0) for n in names])
+    for j in LEG_JOINTS:
+        for keys in raw["keys"].get(j, {}).values():
+            for k in keys:
+                k[0] = g(float(k[0]))
 
 
 def _warp(raw: dict, factor: float) -> None:

@@ -69,6 +69,8 @@ def test_muscle_work_closes_the_energy_balance(stroke: str) -> None:
 def test_a_body_picks_its_own_tuning_of_a_bundled_stroke() -> None:
     assert stroke_for_body("crawl", "box") == "crawl"
     assert stroke_for_body("crawl", "rounded") == str(STROKE_DIR / "rounded" / "crawl.toml")
+    assert stroke_for_body("breaststroke", "rounded") == \
+        str(STROKE_DIR / "rounded" / "breaststroke.toml")
     # a body without its own tuning, and a stroke file, are swum as given
-    assert stroke_for_body("breaststroke", "rounded") == "breaststroke"
+    assert stroke_for_body("treading", "rounded") == "treading"
     assert stroke_for_body("my.toml", "rounded") == "my.toml"
