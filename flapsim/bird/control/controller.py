@@ -49,7 +49,14 @@ from flapsim.bird.control.regression import (
 from flapsim.bird.control.targets import CruiseTarget
 from flapsim.bird.flight import cycle
 from flapsim.bird.flight.dove_flight import DoveFlight, FlightConfig, pose_quat
-from flapsim.bird.flight.wingbeat import N_PARAMS, ReferenceWingbeat, p0, project_to_ranges, with_tail_bias
+from flapsim.bird.flight.wingbeat import (
+    N_PARAMS,
+    ReferenceWingbeat,
+    mirror_params,
+    p0,
+    project_to_ranges,
+    with_tail_bias,
+)
 from flapsim.core.errors import InputError, SimulationError
 from flapsim.core.parallel import usable_cores
 from flapsim.fluid.coefficients import get_table
@@ -310,7 +317,7 @@ class WingbeatController:
         if isinstance(self.lateral, BankedRegulator):
             # the regulator flies the bank: the regression's answer keeps its symmetric part
             # (what it asks of both wings alike: lift, thrust, pitch)
-            dP = 0.5 * (dP + mirror_samples(np.zeros((1, 8)), dP[None], self.P0)[1][1])
+            dP = 0.5 * (dP + (mirror_params(self.P0 + dP) - self.P0))
             if base is not self.P0:
                 # what is carried and the regulator's change plus the answer, unclipped: the
                 # regulator's integral and the banked gains ask more than the database spans

@@ -27,7 +27,6 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-import scipy.linalg
 
 from flapsim.bird.body.params import DOF_NAMES
 from flapsim.bird.control import wingbeat_map
@@ -85,6 +84,14 @@ def lateral_state(fl: DoveFlight) -> np.ndarray:
     return np.concatenate([fl.reduced_state()[list(TRUNK)], dq, dqd])
 
 
+def rolled(quat: np.ndarray, angle: float) -> np.ndarray:
+    """The orientation ``quat`` (w, x, y, z) turned by ``angle`` (rad) about its own forward
+    (x) axis: + rolls the right wing down, as the reduced state's roll."""
+    q = np.zeros(4)
+    mujoco.mju_mulQuat(q, np.array(quat, float), np.array([np.cos(angle / 2), np.sin(angle / 2), 0, 0]))
+    return q
+
+
 def perturb(fl: DoveFlight, j: int, eps: float) -> None:
     """Move component ``j`` of :func:`lateral_state` by ``eps``, the trunk's body-frame
     velocities kept."""
@@ -95,8 +102,7 @@ def perturb(fl: DoveFlight, j: int, eps: float) -> None:
     nw = len(WING_DOFS)
     if j == 0:  # roll: the trunk turned about its own forward axis, its body-frame velocity kept
         v_body = R.T @ d.qvel[0:3]
-        q = np.zeros(4)
-        mujoco.mju_mulQuat(q, d.qpos[3:7], np.array([np.cos(eps / 2), np.sin(eps / 2), 0, 0]))
+        q = rolled(d.qpos[3:7], eps)
         d.qpos[3:7] = q
         R2 = np.zeros(9)
         mujoco.mju_quat2Mat(R2, q)
@@ -156,8 +162,7 @@ def bank_state(fl: DoveFlight, snap: cycle.Snapshot, bank_deg: float) -> cycle.S
     m, d = fl.model, fl.data
     cycle.restore(fl, snap)
     phi = np.radians(bank_deg)
-    q = np.zeros(4)
-    mujoco.mju_mulQuat(q, d.qpos[3:7].copy(), np.array([np.cos(phi / 2), np.sin(phi / 2), 0, 0]))
+    q = rolled(d.qpos[3:7], phi)
     d.qpos[3:7] = q
     R = np.zeros(9)
     mujoco.mju_quat2Mat(R, q)
@@ -218,11 +223,10 @@ def integral_lqr(A: np.ndarray, B: np.ndarray, r: float, z_scale: float) -> np.n
     Aa = np.zeros((n + 1, n + 1))
     Aa[:n, :n], Aa[n, 0], Aa[n, n] = A, 1.0, 1.0
     Ba = np.vstack([B, np.zeros((1, B.shape[1]))])
-    scale = np.concatenate([STATE_SCALE, np.zeros(n - len(STATE_SCALE)), [z_scale]])
-    Q = np.diag(np.where(scale > 0, 1.0 / np.where(scale > 0, scale, 1.0) ** 2, 0.0))
-    R = r * np.eye(B.shape[1])
-    X = scipy.linalg.solve_discrete_are(Aa, Ba, Q, R)
-    return np.linalg.solve(R + Ba.T @ X @ Ba, Ba.T @ X @ Aa)
+    Q = np.zeros((n + 1, n + 1))
+    Q[:len(STATE_SCALE), :len(STATE_SCALE)] = np.diag(1.0 / STATE_SCALE ** 2)
+    Q[n, n] = 1.0 / z_scale ** 2
+    return wingbeat_map.lqr_q(Aa, Ba, Q, r)
 
 
 @dataclass

@@ -45,6 +45,11 @@ def lqr(A: np.ndarray, B: np.ndarray, r: float, state_scale: np.ndarray) -> np.n
     1 / state_scale^2 (the rest nothing) and each input ``r``."""
     Q = np.zeros((len(A), len(A)))
     Q[:len(state_scale), :len(state_scale)] = np.diag(1.0 / state_scale ** 2)
+    return lqr_q(A, B, Q, r)
+
+
+def lqr_q(A: np.ndarray, B: np.ndarray, Q: np.ndarray, r: float) -> np.ndarray:
+    """K of the discrete LQR, u = -K x, for the state cost ``Q`` and each input costing ``r``."""
     R = r * np.eye(B.shape[1])
     X = scipy.linalg.solve_discrete_are(A, B, Q, R)
     return np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
